@@ -1,0 +1,1 @@
+"""Scripted sample scenes (not part of the extension zip)."""
