@@ -1,0 +1,175 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The atmosphere: two exponential layers of scatterers (molecules and aerosols) over a spherical planet.
+
+Every coefficient is a sea-level value per colour channel (R, G, B), in 1/m; the density of each
+species falls as exp(-h / H) with altitude h (Hoffman & Preetham 2002, section "Applying the Theory";
+Bruneton & Neyret 2008 for the two-layer model). Molecules (Rayleigh) only scatter; aerosols (Mie)
+scatter and absorb, so the extinction coefficient is beta_ex = beta_R + beta_M,sc + beta_M,abs.
+
+Default: a clear Earth sky.
+
+* Rayleigh coefficients from :func:`~atmos_addon.physics.rayleigh.rayleigh_coefficients` at the
+  default wavelengths (680, 550, 440 nm) for 288.15 K and 101325 Pa; scale height H_R = k T / (m g) =
+  8434 m so that beta_R H_R is the hydrostatic column optical depth of Bodhaine et al. 1999.
+* A light continental haze: grey Mie scattering 3.3e-5 1/m and absorption 3.3e-6 1/m (single-scattering
+  albedo 0.91), scale height 1200 m, Henyey-Greenstein g = 0.76 (Bruneton & Neyret 2008). Vertical aerosol
+  optical depth 0.044; with the Rayleigh term the 550 nm extinction is 4.5e-5 1/m, a meteorological
+  visibility 3.912 / beta_ex of about 88 km (Koschmieder).
+* ``sun_irradiance_top`` = 4.5 W/m^2 per channel, white. Blender's sun strength is a render unit, not
+  the solar constant (1361 W/m^2): daylight at film exposure 0 uses a sun strength of about 3-5. With
+  4.5 above the atmosphere the clear-sky ground sun has a luminance-weighted strength of about 3.9 at
+  the zenith and 3.8 at 60 deg elevation. White because the renderer's white point is daylight and the
+  sun above the atmosphere (about 5800 K) is close to it; the atmosphere alone makes it warmer.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .rayleigh import rayleigh_coefficients, rayleigh_column_scale_height
+
+#: Default colour-channel wavelengths (R, G, B), nm.
+DEFAULT_WAVELENGTHS_NM = (680.0, 550.0, 440.0)
+#: Sea-level scale height of the Rayleigh layer, m (column-consistent, see module docstring).
+DEFAULT_RAYLEIGH_SCALE_HEIGHT_M = rayleigh_column_scale_height()
+#: Sea-level Mie scattering coefficient of a light haze, 1/m (grey).
+DEFAULT_MIE_SCATTERING_PER_M = 3.3e-5
+#: Sea-level Mie absorption coefficient, 1/m (10 % of the scattering: single-scattering albedo 0.91).
+DEFAULT_MIE_ABSORPTION_PER_M = 3.3e-6
+#: Henyey-Greenstein anisotropy of the haze (positive: forward scattering).
+DEFAULT_MIE_G = 0.76
+#: Scale height of the aerosol layer, m.
+DEFAULT_MIE_SCALE_HEIGHT_M = 1200.0
+#: Mean radius of the Earth used by Bruneton & Neyret 2008, m.
+DEFAULT_PLANET_RADIUS_M = 6_360_000.0
+#: Height of the top of the atmosphere above the ground, m.
+DEFAULT_ATMOSPHERE_HEIGHT_M = 100_000.0
+#: Sun irradiance above the atmosphere per channel, W/m^2 in Blender's sun-strength unit (see module docstring).
+DEFAULT_SUN_IRRADIANCE_TOP = 4.5
+
+_CHANNELS = 3
+_RGB_FIELDS = ("rayleigh_scattering", "mie_scattering", "mie_absorption", "mie_g", "sun_irradiance_top",
+               "wavelengths_nm")
+_LENGTH_FIELDS = ("rayleigh_scale_height", "mie_scale_height", "planet_radius", "atmosphere_height")
+
+
+def _rgb(name: str, value: ArrayLike) -> np.ndarray:
+    """A per-channel value as a read-only float64 array of length 3 (a scalar is broadcast)."""
+    array = np.asarray(value, dtype=np.float64)
+    if array.ndim == 0:
+        array = np.full(_CHANNELS, float(array))
+    if array.shape != (_CHANNELS,):
+        raise ValueError(f"Atmosphere.{name} must be a scalar or have 3 values (R, G, B); got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"Atmosphere.{name} must be finite; got {array.tolist()}")
+    array = array.copy()
+    array.flags.writeable = False
+    return array
+
+
+def _nonnegative(name: str, array: np.ndarray) -> None:
+    """Reject negative coefficients: a medium cannot emit energy by scattering or absorbing."""
+    if np.any(array < 0.0):
+        raise ValueError(f"Atmosphere.{name} must be >= 0 (1/m); got {array.tolist()}")
+
+
+def _positive_length(name: str, value: Any) -> float:
+    """A length in metres, checked finite and strictly positive."""
+    try:
+        length = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"Atmosphere.{name} must be a number of metres; got {value!r}") from None
+    if not np.isfinite(length) or length <= 0.0:
+        raise ValueError(f"Atmosphere.{name} must be a finite length > 0 m; got {value!r}")
+    return length
+
+
+@dataclass(frozen=True, eq=False)
+class Atmosphere:
+    """Optical properties of a planetary atmosphere at sea level, per colour channel (R, G, B).
+
+    ``rayleigh_scattering=None`` (the default) computes the molecular coefficients from
+    ``wavelengths_nm`` for standard sea-level air. Scalars are broadcast to the three channels;
+    arrays are stored read-only. Units: coefficients 1/m, lengths m, irradiance W/m^2 (Blender
+    sun strength), wavelengths nm; ``mie_g`` is dimensionless with positive values scattering forward.
+    """
+
+    rayleigh_scattering: ArrayLike | None = None
+    mie_scattering: ArrayLike = DEFAULT_MIE_SCATTERING_PER_M
+    mie_absorption: ArrayLike = DEFAULT_MIE_ABSORPTION_PER_M
+    mie_g: ArrayLike = DEFAULT_MIE_G
+    rayleigh_scale_height: float = DEFAULT_RAYLEIGH_SCALE_HEIGHT_M
+    mie_scale_height: float = DEFAULT_MIE_SCALE_HEIGHT_M
+    planet_radius: float = DEFAULT_PLANET_RADIUS_M
+    atmosphere_height: float = DEFAULT_ATMOSPHERE_HEIGHT_M
+    sun_irradiance_top: ArrayLike = DEFAULT_SUN_IRRADIANCE_TOP
+    wavelengths_nm: ArrayLike = field(default=DEFAULT_WAVELENGTHS_NM)
+
+    def __post_init__(self) -> None:
+        wavelengths = _rgb("wavelengths_nm", self.wavelengths_nm)
+        if np.any(wavelengths <= 0.0):
+            raise ValueError(f"Atmosphere.wavelengths_nm must be > 0 nm; got {wavelengths.tolist()}")
+        object.__setattr__(self, "wavelengths_nm", wavelengths)
+        if self.rayleigh_scattering is None:
+            object.__setattr__(self, "rayleigh_scattering", rayleigh_coefficients(wavelengths))
+        for name in ("rayleigh_scattering", "mie_scattering", "mie_absorption", "sun_irradiance_top"):
+            array = _rgb(name, getattr(self, name))
+            _nonnegative(name, array)
+            object.__setattr__(self, name, array)
+        g = _rgb("mie_g", self.mie_g)
+        if np.any(np.abs(g) >= 1.0):
+            raise ValueError(f"Atmosphere.mie_g must satisfy -1 < g < 1 (Henyey-Greenstein anisotropy); "
+                             f"got {g.tolist()}")
+        object.__setattr__(self, "mie_g", g)
+        for name in _LENGTH_FIELDS:
+            object.__setattr__(self, name, _positive_length(name, getattr(self, name)))
+
+    @property
+    def scattering_coefficient(self) -> np.ndarray:
+        """Total sea-level scattering coefficient beta_sc = beta_R + beta_M,sc per channel, 1/m."""
+        return self.rayleigh_scattering + self.mie_scattering
+
+    @property
+    def mie_extinction(self) -> np.ndarray:
+        """Sea-level aerosol extinction beta_M,sc + beta_M,abs per channel, 1/m."""
+        return self.mie_scattering + self.mie_absorption
+
+    @property
+    def extinction_coefficient(self) -> np.ndarray:
+        """Total sea-level extinction coefficient beta_ex = beta_R + beta_M,sc + beta_M,abs per channel, 1/m."""
+        return self.rayleigh_scattering + self.mie_scattering + self.mie_absorption
+
+    def replace(self, **changes: Any) -> "Atmosphere":
+        """A copy with the given fields changed, validated again (``dataclasses.replace``).
+
+        The Rayleigh coefficients are not recomputed when only ``wavelengths_nm`` changes; pass
+        ``rayleigh_scattering=None`` as well to recompute them for the new wavelengths.
+        """
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, list[float] | float]:
+        """Plain lists and floats (JSON-ready), one entry per field; inverse of :meth:`from_dict`."""
+        return {f.name: (getattr(self, f.name).tolist() if f.name in _RGB_FIELDS else getattr(self, f.name))
+                for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "Atmosphere":
+        """Build an atmosphere from :meth:`to_dict` output; missing fields take their defaults."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise ValueError(f"Atmosphere.from_dict: unknown field(s) {unknown}; expected some of {sorted(known)}")
+        return cls(**data)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Atmosphere):
+            return NotImplemented
+        return self.to_dict() == other.to_dict()
+
+    def __hash__(self) -> int:
+        return hash(tuple((k, tuple(v) if isinstance(v, list) else v) for k, v in self.to_dict().items()))

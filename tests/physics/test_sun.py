@@ -1,0 +1,69 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Sunlight at the ground: setting, reddening, smoothness and the colour/strength split."""
+
+import numpy as np
+import pytest
+
+from atmos_addon.physics import Atmosphere, sun_color_and_strength, sun_irradiance_ground
+from atmos_addon.physics.sun import SUN_ANGULAR_RADIUS_RAD, visible_disk_fraction
+
+ATM = Atmosphere()
+RHO = SUN_ANGULAR_RADIUS_RAD
+
+
+def test_zero_once_the_disk_has_set_and_positive_just_above():
+    below = np.array([-np.pi / 2, -0.1, -RHO - 1e-9, -RHO])
+    np.testing.assert_array_equal(sun_irradiance_ground(below, ATM), 0.0)
+    assert np.all(sun_irradiance_ground(-0.99 * RHO, ATM) > 0.0)
+
+
+def test_dense_sweep_is_finite_non_negative_and_bounded():
+    elevation = np.linspace(-np.pi / 2, np.pi / 2, 4001)
+    for atm in (ATM, ATM.replace(rayleigh_scattering=0.0, mie_scattering=0.0, mie_absorption=0.0),
+                ATM.replace(rayleigh_scattering=100 * ATM.rayleigh_scattering, mie_scattering=3.3e-3)):
+        e_sun = sun_irradiance_ground(elevation, atm)
+        assert e_sun.shape == (4001, 3)
+        assert np.all(np.isfinite(e_sun)) and np.all(e_sun >= 0.0) and np.all(e_sun <= atm.sun_irradiance_top)
+
+
+def test_smooth_monotone_rise_through_sunrise():
+    elevation = np.linspace(-2 * RHO, np.radians(5.0), 3001)
+    e_sun = sun_irradiance_ground(elevation, ATM)
+    assert np.all(np.diff(e_sun, axis=0) >= 0.0)
+    # No jumps: each step of 2e-5 rad changes E by a small fraction of its 5-degree value.
+    assert np.max(np.abs(np.diff(e_sun, axis=0))) < 0.01 * e_sun[-1].min()
+
+
+def test_noon_attenuation_order_and_red_sunset():
+    noon = sun_irradiance_ground(np.radians(60.0), ATM) / ATM.sun_irradiance_top
+    assert noon[0] > noon[1] > noon[2]
+    sunset = sun_irradiance_ground(np.radians(2.0), ATM)
+    assert sunset[0] > sunset[1] > sunset[2]
+
+
+def test_ground_noon_is_a_blender_daylight_strength():
+    _, strength = sun_color_and_strength(np.radians([90.0, 60.0]), ATM)
+    assert np.all((3.0 < strength) & (strength < 5.0))
+
+
+def test_colour_times_strength_is_the_irradiance():
+    elevation = np.radians(np.linspace(-5.0, 90.0, 200))
+    colour, strength = sun_color_and_strength(elevation, ATM)
+    np.testing.assert_allclose(colour * strength[:, None], sun_irradiance_ground(elevation, ATM), rtol=1e-12,
+                               atol=0.0)
+    lit = strength > 0
+    np.testing.assert_allclose(colour[lit] @ [0.2126, 0.7152, 0.0722], 1.0, rtol=1e-12)
+    np.testing.assert_array_equal(colour[~lit], 1.0)
+
+
+def test_horizon_dips_for_a_high_observer():
+    # From 10 km the geometric horizon lies 3.2 deg below the astronomical one.
+    assert np.all(sun_irradiance_ground(np.radians(-2.0), ATM, altitude_m=10e3) > 0.0)
+    np.testing.assert_array_equal(sun_irradiance_ground(np.radians(-3.5), ATM, altitude_m=10e3), 0.0)
+
+
+def test_visible_disk_fraction():
+    assert visible_disk_fraction(0.0, RHO) == pytest.approx(0.5)
+    assert visible_disk_fraction(RHO, RHO) == 1.0 and visible_disk_fraction(-RHO, RHO) == 0.0
+    # Segment area at half the radius: (pi/3 - sqrt(3)/4) / pi of the disk lies beyond the chord.
+    assert visible_disk_fraction(-0.5 * RHO, RHO) == pytest.approx((np.pi / 3 - np.sqrt(3) / 4) / np.pi)
