@@ -1,0 +1,34 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Atmos shader node groups: built from code, parameterised by scene custom properties.
+
+``atmos_addon`` imports this package (``import_sibling("node_groups")``) and hands it plain numbers;
+nothing here imports ``atmos_addon``. Modules: :mod:`.graph` (a builder that writes arithmetic as
+nodes), :mod:`.parameters` (the property names and their writer), :mod:`.aerial_perspective` (the
+"Atmos Aerial Perspective" group, Hoffman & Preetham 2002 eq. 19).
+"""
+
+from .aerial_perspective import (GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING, OUTPUT_TRANSMITTANCE,
+                                 AerialFeatures, build_aerial_perspective, describe_features,
+                                 ensure_aerial_perspective_group, is_current, node_count)
+from .graph import GraphBuilder
+from .parameters import (PARAMETER_NAMES, clear_shader_parameters, keyframe_shader_parameters,
+                         read_shader_parameters, write_shader_parameters)
+
+__all__ = [
+    "GROUP_NAME",
+    "NODE_GROUP_VERSION",
+    "OUTPUT_INSCATTERING",
+    "OUTPUT_TRANSMITTANCE",
+    "PARAMETER_NAMES",
+    "AerialFeatures",
+    "GraphBuilder",
+    "build_aerial_perspective",
+    "clear_shader_parameters",
+    "describe_features",
+    "ensure_aerial_perspective_group",
+    "is_current",
+    "keyframe_shader_parameters",
+    "node_count",
+    "read_shader_parameters",
+    "write_shader_parameters",
+]

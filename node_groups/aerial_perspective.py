@@ -1,0 +1,233 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The "Atmos Aerial Perspective" shader node group: Hoffman & Preetham 2002, eq. 19, as nodes.
+
+Per colour channel, for a shading point at distance s (m) from the camera, seen along the unit view
+direction v, with the unit direction to the sun l and mu = v . l:
+
+    beta_ex = beta_R + beta_M + beta_M,abs                      extinction coefficient, 1/m
+    F_ex    = exp(-beta_ex s)                                   "Transmittance"
+    L_in    = (beta_R Phi_R(mu) + beta_M Phi_HG(mu, g)) E_sun s phi1(beta_ex s)      "Inscattering"
+    Phi_R   = 3 / (16 pi) (1 + mu^2)
+    Phi_HG  = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^(3/2))       (normalised; g > 0 scatters forward)
+    phi1(x) = (1 - exp(-x)) / x, or 1 - x/2 + x^2/6 for x < 1e-3 (no 0/0 at zero depth)
+
+s is Camera Data > View Distance times the ``atmos_metres_per_unit`` parameter; v is -(Geometry >
+Incoming). Mie absorption adds to extinction only. The other parameters are read from scene custom
+properties (see :mod:`.parameters`), so the tree depends only on which terms are present
+(:class:`AerialFeatures`), and is rebuilt only when those or :data:`NODE_GROUP_VERSION` change.
+
+Every step follows ``atmos_addon.physics`` (its float32 evaluation is what the tests compare against).
+Vector Math does the per-channel products and sums (exact per component); exp, sqrt, sign and the
+branch of phi1 have no Vector Math form in Blender 4.2, so they run channel by channel on Math nodes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import bpy
+
+from . import parameters
+from .graph import GraphBuilder, Socket
+
+#: Name of the node group in ``bpy.data.node_groups``.
+GROUP_NAME = "Atmos Aerial Perspective"
+#: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
+NODE_GROUP_VERSION = 1
+#: Optical depth below which phi1 uses its series (the physics core's ``SMALL_OPTICAL_DEPTH``).
+SMALL_OPTICAL_DEPTH = 1.0e-3
+#: Floor of the Henyey-Greenstein denominator base (the physics core's ``HG_DENOMINATOR_FLOOR``).
+HG_DENOMINATOR_FLOOR = 1.0e-12
+
+OUTPUT_TRANSMITTANCE = "Transmittance"
+OUTPUT_INSCATTERING = "Inscattering"
+_VERSION_KEY = "atmos_version"
+_FEATURES_KEY = "atmos_features"
+
+
+@dataclass(frozen=True)
+class AerialFeatures:
+    """Which optional terms the group contains: Mie scattering (the HG phase) and Mie absorption."""
+
+    mie: bool = True
+    absorption: bool = True
+
+    @classmethod
+    def from_coefficients(cls, beta_mie: Sequence[float], beta_mie_absorption: Sequence[float]) -> "AerialFeatures":
+        """The smallest feature set that represents these coefficients (a term is kept if any channel > 0)."""
+        return cls(mie=any(float(b) > 0.0 for b in beta_mie),
+                   absorption=any(float(b) > 0.0 for b in beta_mie_absorption))
+
+    @property
+    def key(self) -> str:
+        """A stable short name, stamped on the tree: "rayleigh", "rayleigh+mie", "rayleigh+mie+abs"..."""
+        return "rayleigh" + ("+mie" if self.mie else "") + ("+abs" if self.absorption else "")
+
+
+# -- the quantities ------------------------------------------------------------------------------------
+
+
+def distance_m(g: GraphBuilder) -> Socket:
+    """s: distance from the camera to the shading point, m (View Distance in scene units times metres per unit)."""
+    camera = g.node("ShaderNodeCameraData", label="Camera Data")
+    metres_per_unit = g.attribute(parameters.METRES_PER_UNIT, output="Fac")
+    return g.mul(camera.outputs["View Distance"], metres_per_unit, label="s (m)")
+
+
+def cos_theta_to_sun(g: GraphBuilder) -> Socket:
+    """mu = v . l, the cosine between the view direction (camera to point) and the direction to the sun."""
+    geometry = g.node("ShaderNodeNewGeometry", label="Geometry")
+    # Normalised here too: keyframed directions interpolate component-wise, off the unit sphere.
+    sun_direction = g.normalize(g.attribute(parameters.SUN_DIRECTION, output="Vector"), label="l")
+    mu = g.neg(g.dot(geometry.outputs["Incoming"], sun_direction), label="mu")
+    return g.clamp(mu, -1.0, 1.0, label="mu clamped")
+
+
+def extinction_coefficient(g: GraphBuilder, features: AerialFeatures, beta_rayleigh: Socket,
+                           beta_mie: Socket | None) -> Socket:
+    """beta_ex = beta_R + beta_M + beta_M,abs, 1/m (only the terms the features keep)."""
+    beta_ex = beta_rayleigh
+    if features.mie:
+        beta_ex = g.add(beta_ex, beta_mie, label="beta_R + beta_M")
+    if features.absorption:
+        beta_ex = g.add(beta_ex, g.attribute(parameters.BETA_MIE_ABSORPTION), label="beta_ex")
+    return beta_ex
+
+
+def optical_depth(g: GraphBuilder, beta_ex: Socket, s: Socket) -> Socket:
+    """tau = beta_ex s per channel, dimensionless."""
+    return g.mul(beta_ex, s, label="tau = beta_ex s")
+
+
+def transmittance(g: GraphBuilder, tau: Socket) -> Socket:
+    """F_ex = exp(-tau) per channel."""
+    return g.per_channel(g.exp, g.neg(tau), label="F_ex")
+
+
+def one_minus_exp_over_x(g: GraphBuilder, x: Socket, exp_minus_x: Socket) -> Socket:
+    """phi1(x) = (1 - exp(-x)) / x per channel, by its series 1 - x/2 + x^2/6 where x < 1e-3.
+
+    ``exp_minus_x`` is exp(-x) (the transmittance, already computed); the quotient uses max(x, 1e-3)
+    so the unused branch never divides by zero, and the branch is picked exactly (see ``select``).
+    """
+    series = g.add(g.sub(1.0, g.mul(x, 0.5)), g.mul(g.mul(x, x), 1.0 / 6.0), label="1 - x/2 + x^2/6")
+    quotient = g.div(g.sub(1.0, exp_minus_x), g.max(x, SMALL_OPTICAL_DEPTH), label="(1 - e^-x) / x")
+
+    def pick(x_c: Socket, series_c: Socket, quotient_c: Socket) -> Socket:
+        return g.select(g.less_than(x_c, SMALL_OPTICAL_DEPTH), series_c, quotient_c)
+
+    return g.per_channel(pick, x, series, quotient, label="phi1")
+
+
+def phase_rayleigh(g: GraphBuilder, mu: Socket) -> Socket:
+    """Phi_R(mu) = 3 / (16 pi) (1 + mu^2), 1/sr (eq. 17)."""
+    return g.mul(g.multiply_add(mu, mu, 1.0), 3.0 / (16.0 * math.pi), label="Phi_R")
+
+
+def phase_henyey_greenstein(g: GraphBuilder, mu: Socket, anisotropy: Socket) -> Socket:
+    """Phi_HG(mu, g) = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^(3/2)) per channel, 1/sr (eq. 18, normalised).
+
+    The base is written (1 - |g|)^2 + 2 |g| (1 - sign(g) mu), two non-negative terms, so it does not
+    cancel near the peak as |g| -> 1, and is floored at 1e-12.
+    """
+    abs_g = g.abs(anisotropy, label="|g|")
+    sign_g = g.per_channel(g.sign, anisotropy, label="sign(g)")
+    one_minus_sign_mu = g.multiply_add(sign_g, g.neg(mu), 1.0, label="1 - sign(g) mu")
+    one_minus_abs_g = g.sub(1.0, abs_g)
+    base = g.multiply_add(g.mul(abs_g, 2.0), one_minus_sign_mu, g.mul(one_minus_abs_g, one_minus_abs_g),
+                          label="1 + g^2 - 2 g mu")
+    base = g.max(base, HG_DENOMINATOR_FLOOR)
+    base_to_three_halves = g.mul(base, g.per_channel(g.sqrt, base), label="base^1.5")
+    one_minus_g2 = g.mul(g.sub(1.0, anisotropy), g.add(1.0, anisotropy), label="1 - g^2")
+    return g.div(one_minus_g2, g.mul(base_to_three_halves, 4.0 * math.pi), label="Phi_HG")
+
+
+def inscattering(g: GraphBuilder, features: AerialFeatures, s: Socket, mu: Socket, beta_rayleigh: Socket,
+                 beta_mie: Socket | None, tau: Socket, f_ex: Socket) -> Socket:
+    """L_in = (beta_R Phi_R + beta_M Phi_HG) E_sun s phi1(beta_ex s) per channel (eq. 19, E_sun at the ground)."""
+    angular = g.mul(beta_rayleigh, phase_rayleigh(g, mu), label="beta_R Phi_R")
+    if features.mie:
+        anisotropy = g.attribute(parameters.MIE_G)
+        angular = g.add(angular, g.mul(beta_mie, phase_henyey_greenstein(g, mu, anisotropy)),
+                        label="beta_R Phi_R + beta_M Phi_HG")
+    sun_irradiance = g.attribute(parameters.SUN_IRRADIANCE)
+    path = g.mul(one_minus_exp_over_x(g, tau, f_ex), s, label="s phi1")
+    return g.mul(g.mul(angular, sun_irradiance), path, label="L_in")
+
+
+# -- the group ---------------------------------------------------------------------------------------
+
+
+def _ensure_interface(tree: bpy.types.ShaderNodeTree) -> None:
+    """Add the group's output sockets if missing (existing sockets, and the links to them, are kept)."""
+    present = {item.name for item in tree.interface.items_tree
+               if item.item_type == "SOCKET" and item.in_out == "OUTPUT"}
+    for name, description in ((OUTPUT_TRANSMITTANCE, "F_ex = exp(-beta_ex s): multiply the surface radiance"),
+                              (OUTPUT_INSCATTERING, "L_in: sunlight scattered toward the camera; add it")):
+        if name not in present:
+            socket = tree.interface.new_socket(name, in_out="OUTPUT", socket_type="NodeSocketColor")
+            socket.description = description
+
+
+def build_aerial_perspective(tree: bpy.types.ShaderNodeTree, features: AerialFeatures) -> None:
+    """Clear ``tree``'s nodes and build the aerial-perspective graph for ``features`` (interface kept)."""
+    tree.nodes.clear()
+    _ensure_interface(tree)
+    g = GraphBuilder(tree)
+    s = distance_m(g)
+    mu = cos_theta_to_sun(g)
+    beta_rayleigh = g.attribute(parameters.BETA_RAYLEIGH)
+    beta_mie = g.attribute(parameters.BETA_MIE) if features.mie else None
+    tau = optical_depth(g, extinction_coefficient(g, features, beta_rayleigh, beta_mie), s)
+    f_ex = transmittance(g, tau)
+    l_in = inscattering(g, features, s, mu, beta_rayleigh, beta_mie, tau, f_ex)
+    output = g.node("NodeGroupOutput", label="Group Output")
+    tree.links.new(f_ex, output.inputs[OUTPUT_TRANSMITTANCE])
+    tree.links.new(l_in, output.inputs[OUTPUT_INSCATTERING])
+    g.set_depth(output, g.max_depth + 1)
+    g.layout()
+    tree[_VERSION_KEY] = NODE_GROUP_VERSION
+    tree[_FEATURES_KEY] = features.key
+
+
+def is_current(tree: bpy.types.NodeTree, features: AerialFeatures) -> bool:
+    """True if ``tree`` was built by this version for ``features``."""
+    return tree.get(_VERSION_KEY) == NODE_GROUP_VERSION and tree.get(_FEATURES_KEY) == features.key
+
+
+def ensure_aerial_perspective_group(features: AerialFeatures = AerialFeatures()) -> bpy.types.ShaderNodeTree:
+    """Get or create the "Atmos Aerial Perspective" group, rebuilt in place only if stale.
+
+    A tree stamped with the current :data:`NODE_GROUP_VERSION` and ``features`` is returned untouched.
+    A stale one keeps its identity and interface (group nodes in materials keep their links) and gets
+    new nodes. A data-block of that name that is not a shader tree is an error the user must resolve.
+    """
+    tree = bpy.data.node_groups.get(GROUP_NAME)
+    if tree is None:
+        tree = bpy.data.node_groups.new(GROUP_NAME, "ShaderNodeTree")
+    elif tree.bl_idname != "ShaderNodeTree":
+        raise TypeError(f'Node group "{GROUP_NAME}" exists but is a {tree.bl_idname}, not a shader node group; '
+                        f"rename or delete it, then apply Atmos again")
+    if not is_current(tree, features):
+        build_aerial_perspective(tree, features)
+    return tree
+
+
+def node_count(tree: bpy.types.NodeTree) -> int:
+    """Number of nodes in ``tree`` (the group output included)."""
+    return len(tree.nodes)
+
+
+def describe_features(features: AerialFeatures) -> str:
+    """One line for the panel, e.g. "Rayleigh + Mie + absorption: 81 nodes".
+
+    Reads :data:`NODE_COUNTS` (a test checks it against built trees), so it is safe in a panel's draw.
+    """
+    parts = ["Rayleigh"] + (["Mie"] if features.mie else []) + (["absorption"] if features.absorption else [])
+    return f"{' + '.join(parts)}: {NODE_COUNTS[features.key]} nodes"
+
+
+#: Nodes in the group per feature key for this :data:`NODE_GROUP_VERSION` (group output included).
+NODE_COUNTS = {"rayleigh": 50, "rayleigh+abs": 52, "rayleigh+mie": 79, "rayleigh+mie+abs": 81}

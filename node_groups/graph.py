@@ -1,0 +1,255 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""A tiny builder that writes arithmetic as shader nodes, so an equation reads as code.
+
+``g = GraphBuilder(tree)`` then ``g.mul(beta, s)``, ``g.exp(x)``, ``g.per_channel(fn, colour)``...
+Each helper adds one node and returns its output socket. Operands are output sockets or plain
+numbers (a number becomes the input's default value, not an extra node). Arithmetic on a vector or
+colour operand uses Vector Math (exact per component); on scalars it uses Math. Functions without a
+Vector Math form in every supported Blender (exp, pow, comparisons) work on scalars; apply them to a
+colour with :meth:`GraphBuilder.per_channel`. :meth:`GraphBuilder.layout` places nodes in columns by
+their depth in the graph, so the tree reads left to right in the editor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Union
+
+import bpy
+
+Socket = bpy.types.NodeSocket
+#: An operand: a node output socket, a number, or three numbers (a vector/colour constant).
+Operand = Union[Socket, float, int, Sequence[float]]
+
+_VECTOR_SOCKET_TYPES = {"VECTOR", "RGBA"}
+_COLUMN_WIDTH = 220.0
+_ROW_HEIGHT = 170.0
+
+
+def _is_vector(value: Operand) -> bool:
+    """True for a vector/colour socket or a 3-sequence constant."""
+    if isinstance(value, bpy.types.NodeSocket):
+        return value.type in _VECTOR_SOCKET_TYPES
+    return isinstance(value, Sequence) and not isinstance(value, str)
+
+
+class GraphBuilder:
+    """Add arithmetic nodes to ``tree`` (a shader node tree or group) and lay them out in columns."""
+
+    def __init__(self, tree: bpy.types.NodeTree) -> None:
+        self.tree = tree
+        self._depth: dict[str, int] = {}
+
+    # -- plumbing -----------------------------------------------------------------------------------
+
+    def node(self, bl_idname: str, *, label: str = "", depth: int | None = None, **properties) -> bpy.types.Node:
+        """Add a node of type ``bl_idname`` with the given RNA properties; ``depth`` is its layout column."""
+        node = self.tree.nodes.new(bl_idname)
+        for key, value in properties.items():
+            setattr(node, key, value)
+        if label:
+            node.label = label
+        self._depth[node.name] = 0 if depth is None else depth
+        return node
+
+    def _feed(self, node: bpy.types.Node, socket: bpy.types.NodeSocket, value: Operand) -> None:
+        """Link ``value`` into ``socket`` (or set its default) and push ``node`` right of its source."""
+        if isinstance(value, bpy.types.NodeSocket):
+            self.tree.links.new(value, socket)
+            source_depth = self._depth.get(value.node.name, 0)
+            self._depth[node.name] = max(self._depth[node.name], source_depth + 1)
+        elif _is_vector(value):
+            socket.default_value = tuple(float(v) for v in value)
+        else:
+            socket.default_value = float(value)
+
+    def _math(self, operation: str, *operands: Operand, label: str = "") -> Socket:
+        """One scalar Math node."""
+        node = self.node("ShaderNodeMath", operation=operation, use_clamp=False, label=label)
+        for socket, value in zip(node.inputs, operands):
+            self._feed(node, socket, value)
+        return node.outputs[0]
+
+    def _vector_math(self, operation: str, *operands: Operand, label: str = "") -> Socket:
+        """One Vector Math node (inputs 0-2 are vectors); returns its Vector output."""
+        node = self.node("ShaderNodeVectorMath", operation=operation, label=label)
+        for socket, value in zip(node.inputs, operands):
+            self._feed(node, socket, value)
+        return node.outputs["Vector"]
+
+    def _arithmetic(self, operation: str, a: Operand, b: Operand, label: str) -> Socket:
+        """``a (op) b`` with Math, or Vector Math if either operand is a vector/colour."""
+        if _is_vector(a) or _is_vector(b):
+            if operation == "MULTIPLY" and not _is_vector(b) and not isinstance(b, bpy.types.NodeSocket):
+                return self.scale(a, b, label=label)
+            a = a if _is_vector(a) or isinstance(a, bpy.types.NodeSocket) else (a, a, a)
+            b = b if _is_vector(b) or isinstance(b, bpy.types.NodeSocket) else (b, b, b)
+            return self._vector_math(operation, a, b, label=label)
+        return self._math(operation, a, b, label=label)
+
+    # -- arithmetic ---------------------------------------------------------------------------------
+
+    def add(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """a + b"""
+        return self._arithmetic("ADD", a, b, label)
+
+    def sub(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """a - b"""
+        return self._arithmetic("SUBTRACT", a, b, label)
+
+    def mul(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """a * b (per component for vectors; a scalar socket is broadcast to the three components)."""
+        return self._arithmetic("MULTIPLY", a, b, label)
+
+    def div(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """a / b (Blender's divide returns 0 where b == 0; callers guard b instead of relying on it)."""
+        return self._arithmetic("DIVIDE", a, b, label)
+
+    def max(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """max(a, b)"""
+        return self._arithmetic("MAXIMUM", a, b, label)
+
+    def min(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """min(a, b)"""
+        return self._arithmetic("MINIMUM", a, b, label)
+
+    def scale(self, vector: Operand, factor: Operand, *, label: str = "") -> Socket:
+        """vector * factor with a scalar factor (Vector Math Scale)."""
+        node = self.node("ShaderNodeVectorMath", operation="SCALE", label=label)
+        self._feed(node, node.inputs[0], vector)
+        self._feed(node, node.inputs["Scale"], factor)
+        return node.outputs["Vector"]
+
+    def neg(self, a: Operand, *, label: str = "") -> Socket:
+        """-a"""
+        if _is_vector(a):
+            return self.scale(a, -1.0, label=label)
+        return self._math("MULTIPLY", a, -1.0, label=label)
+
+    def multiply_add(self, a: Operand, b: Operand, c: Operand, *, label: str = "") -> Socket:
+        """a * b + c (per component if any operand is a vector/colour)."""
+        if any(_is_vector(v) for v in (a, b, c)):
+            a, b, c = (v if _is_vector(v) or isinstance(v, bpy.types.NodeSocket) else (v, v, v) for v in (a, b, c))
+            return self._vector_math("MULTIPLY_ADD", a, b, c, label=label)
+        return self._math("MULTIPLY_ADD", a, b, c, label=label)
+
+    def abs(self, a: Operand, *, label: str = "") -> Socket:
+        """|a| (per component for vectors)."""
+        if _is_vector(a):
+            return self._vector_math("ABSOLUTE", a, label=label)
+        return self._math("ABSOLUTE", a, label=label)
+
+    def sign(self, a: Operand, *, label: str = "") -> Socket:
+        """sign(a): -1, 0 or 1 (scalar)."""
+        return self._math("SIGN", a, label=label)
+
+    def sqrt(self, a: Operand, *, label: str = "") -> Socket:
+        """sqrt(a) (scalar, a >= 0)."""
+        return self._math("SQRT", a, label=label)
+
+    def exp(self, a: Operand, *, label: str = "") -> Socket:
+        """e^a (scalar)."""
+        return self._math("EXPONENT", a, label=label)
+
+    def pow(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """a^b (scalar, a >= 0)."""
+        return self._math("POWER", a, b, label=label)
+
+    def less_than(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """1.0 if a < b else 0.0 (scalar)."""
+        return self._math("LESS_THAN", a, b, label=label)
+
+    def clamp(self, a: Operand, low: float, high: float, *, label: str = "") -> Socket:
+        """min(max(a, low), high)."""
+        return self.min(self.max(a, low), high, label=label)
+
+    def dot(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """a . b (vectors), a scalar."""
+        node = self.node("ShaderNodeVectorMath", operation="DOT_PRODUCT", label=label)
+        self._feed(node, node.inputs[0], a)
+        self._feed(node, node.inputs[1], b)
+        return node.outputs["Value"]
+
+    def normalize(self, a: Operand, *, label: str = "") -> Socket:
+        """a / |a| (a vector; the zero vector stays zero)."""
+        return self._vector_math("NORMALIZE", a, label=label)
+
+    def select(self, condition: Operand, if_true: Operand, if_false: Operand, *, label: str = "") -> Socket:
+        """``if_true`` where condition == 1, ``if_false`` where it is 0 (scalars, both branches finite).
+
+        Written as if_true * c + if_false * (1 - c) so a 0/1 condition picks a branch bit-exactly
+        (a Mix node's a + t (b - a) form rounds).
+        """
+        otherwise = self.sub(1.0, condition)
+        return self.multiply_add(if_true, condition, self.mul(if_false, otherwise), label=label)
+
+    def mix(self, factor: Operand, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """Linear blend a (factor 0) to b (factor 1) with a Mix node; colours if a or b is a colour."""
+        colour = _is_vector(a) or _is_vector(b)
+        node = self.node("ShaderNodeMix", data_type="RGBA" if colour else "FLOAT", label=label)
+        self._feed(node, node.inputs[0], factor)
+        a_index, b_index, out_index = (6, 7, 2) if colour else (2, 3, 0)
+        self._feed(node, node.inputs[a_index], a)
+        self._feed(node, node.inputs[b_index], b)
+        return node.outputs[out_index]
+
+    # -- constants and channels ---------------------------------------------------------------------
+
+    def const(self, value: float, *, label: str = "") -> Socket:
+        """A Value node holding ``value`` (use plain numbers as operands instead where a node is not wanted)."""
+        node = self.node("ShaderNodeValue", label=label)
+        node.outputs[0].default_value = float(value)
+        return node.outputs[0]
+
+    def separate(self, colour: Operand, *, label: str = "") -> tuple[Socket, Socket, Socket]:
+        """The three components of a colour or vector (Separate XYZ: no colour-space conversion)."""
+        node = self.node("ShaderNodeSeparateXYZ", label=label)
+        self._feed(node, node.inputs[0], colour)
+        return node.outputs[0], node.outputs[1], node.outputs[2]
+
+    def combine(self, r: Operand, g: Operand, b: Operand, *, label: str = "") -> Socket:
+        """A vector from three scalars (Combine XYZ; links into colour sockets unchanged)."""
+        node = self.node("ShaderNodeCombineXYZ", label=label)
+        for socket, value in zip(node.inputs, (r, g, b)):
+            self._feed(node, socket, value)
+        return node.outputs[0]
+
+    def per_channel(self, fn: Callable[..., Socket], *operands: Operand, label: str = "") -> Socket:
+        """Apply the scalar function ``fn`` channel by channel: fn(a_r, b_r, ...), fn(a_g, ...), fn(a_b, ...).
+
+        Vector/colour operands are split once with :meth:`separate`; scalars pass to every channel.
+        """
+        split = [self.separate(op) if _is_vector(op) else (op, op, op) for op in operands]
+        channels = [fn(*(parts[c] for parts in split)) for c in range(3)]
+        return self.combine(*channels, label=label)
+
+    # -- inputs and outputs -------------------------------------------------------------------------
+
+    def attribute(self, name: str, *, attribute_type: str = "VIEW_LAYER", output: str = "Color",
+                  label: str = "") -> Socket:
+        """The ``output`` socket (Color, Vector or Fac) of an Attribute node reading ``name``."""
+        node = self.node("ShaderNodeAttribute", attribute_type=attribute_type, attribute_name=name,
+                         label=label or name)
+        return node.outputs[output]
+
+    # -- layout -------------------------------------------------------------------------------------
+
+    def layout(self, *, origin: tuple[float, float] = (0.0, 0.0)) -> None:
+        """Place every node the builder made in a column by its depth (inputs left, outputs right)."""
+        rows: dict[int, int] = {}
+        for node in self.tree.nodes:
+            column = self._depth.get(node.name)
+            if column is None:
+                continue
+            row = rows.get(column, 0)
+            rows[column] = row + 1
+            node.location = (origin[0] + column * _COLUMN_WIDTH, origin[1] - row * _ROW_HEIGHT)
+
+    def set_depth(self, node: bpy.types.Node, depth: int) -> None:
+        """Force a node's layout column (e.g. the group output to the far right)."""
+        self._depth[node.name] = depth
+
+    @property
+    def max_depth(self) -> int:
+        """The deepest column used so far."""
+        return max(self._depth.values(), default=0)

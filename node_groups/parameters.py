@@ -1,0 +1,157 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The values the Atmos node groups read at render time: scene custom properties.
+
+The groups read each parameter with an Attribute node of type ``VIEW_LAYER``, which looks the name
+up on the view layer, then the scene, then the world (Cycles and Eevee, Blender 3.5+). Changing a
+parameter is therefore a property write, never a node-tree rebuild; Eevee does not recompile its
+shaders. The properties can be keyframed (``scene.keyframe_insert('["atmos_sun_direction"]')``) and the
+render evaluates them per frame, so an animated sun renders on a machine without the add-on.
+A parameter that is missing reads as zero: the groups then pass the surface through unchanged
+(transmittance 1, in-scattering 0).
+
+Three-float properties are read through the Attribute node's Color/Vector output, floats through Fac.
+Units: coefficients 1/m, irradiance W/m^2 (Blender sun strength), the sun direction a unit world-space
+vector pointing toward the sun, ``metres_per_unit`` metres per Blender scene unit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import bpy
+
+#: Rayleigh scattering coefficient beta_R per channel, 1/m.
+BETA_RAYLEIGH = "atmos_beta_rayleigh"
+#: Mie scattering coefficient beta_M per channel, 1/m.
+BETA_MIE = "atmos_beta_mie"
+#: Mie absorption coefficient per channel, 1/m (adds to extinction only).
+BETA_MIE_ABSORPTION = "atmos_beta_mie_absorption"
+#: Henyey-Greenstein anisotropy g per channel (positive: forward, toward the sun).
+MIE_G = "atmos_mie_g"
+#: Unit vector toward the sun, world space.
+SUN_DIRECTION = "atmos_sun_direction"
+#: Sun irradiance at the ground E_sun per channel, W/m^2 (Blender sun strength).
+SUN_IRRADIANCE = "atmos_sun_irradiance"
+#: Metres per scene unit (scene unit scale times the user's distance scale), a float.
+METRES_PER_UNIT = "atmos_metres_per_unit"
+
+#: Every parameter name, in the order of :func:`write_shader_parameters`' arguments.
+PARAMETER_NAMES = (BETA_RAYLEIGH, BETA_MIE, BETA_MIE_ABSORPTION, MIE_G, SUN_DIRECTION, SUN_IRRADIANCE,
+                   METRES_PER_UNIT)
+#: |g| is kept below this so the Henyey-Greenstein phase stays finite in float32.
+MAX_ABS_MIE_G = 0.999
+
+
+def _triple(name: str, value: Sequence[float] | float) -> tuple[float, float, float]:
+    """Three finite floats (a number is broadcast to the three channels)."""
+    if isinstance(value, (int, float)):
+        value = (value, value, value)
+    try:
+        triple = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"Atmos shader parameter {name}: expected three numbers (R, G, B); got {value!r}") from None
+    if len(triple) != 3 or not all(math.isfinite(v) for v in triple):
+        raise ValueError(f"Atmos shader parameter {name}: expected three finite numbers (R, G, B); got {value!r}")
+    return triple
+
+
+def _nonnegative(name: str, value: Sequence[float] | float) -> tuple[float, float, float]:
+    """Three finite floats >= 0 (coefficients and irradiance)."""
+    triple = _triple(name, value)
+    if min(triple) < 0.0:
+        raise ValueError(f"Atmos shader parameter {name} must be >= 0; got {triple}")
+    return triple
+
+
+def write_shader_parameters(scene: bpy.types.Scene, *, beta_rayleigh: Sequence[float], beta_mie: Sequence[float],
+                            beta_mie_absorption: Sequence[float], mie_g: Sequence[float] | float,
+                            sun_direction: Sequence[float], sun_irradiance: Sequence[float] | float,
+                            metres_per_unit: float) -> None:
+    """Store the aerial-perspective parameters as custom properties of ``scene`` (plain numbers in).
+
+    ``sun_direction`` is normalised here; ``mie_g`` is clamped to +-:data:`MAX_ABS_MIE_G`. Raises
+    ValueError naming the parameter when a value is not finite, a coefficient is negative, the sun
+    direction has zero length or ``metres_per_unit`` is not > 0.
+    """
+    direction = _triple(SUN_DIRECTION, sun_direction)
+    length = math.sqrt(sum(v * v for v in direction))
+    if not length > 0.0:
+        raise ValueError(f"Atmos shader parameter {SUN_DIRECTION}: the sun direction has zero length")
+    metres = float(metres_per_unit)
+    if not (math.isfinite(metres) and metres > 0.0):
+        raise ValueError(f"Atmos shader parameter {METRES_PER_UNIT} must be a finite number > 0; "
+                         f"got {metres_per_unit!r}")
+    values = {
+        BETA_RAYLEIGH: _nonnegative(BETA_RAYLEIGH, beta_rayleigh),
+        BETA_MIE: _nonnegative(BETA_MIE, beta_mie),
+        BETA_MIE_ABSORPTION: _nonnegative(BETA_MIE_ABSORPTION, beta_mie_absorption),
+        MIE_G: tuple(min(max(g, -MAX_ABS_MIE_G), MAX_ABS_MIE_G) for g in _triple(MIE_G, mie_g)),
+        SUN_DIRECTION: tuple(v / length for v in direction),
+        SUN_IRRADIANCE: _nonnegative(SUN_IRRADIANCE, sun_irradiance),
+        METRES_PER_UNIT: metres,
+    }
+    for name, value in values.items():
+        # Assign only on change: a write re-tags the scene, and keyframed values must not be clobbered needlessly.
+        if name not in scene or _as_tuple(scene[name]) != _as_tuple(value):
+            scene[name] = value
+    scene.update_tag()
+
+
+def read_shader_parameters(scene: bpy.types.Scene) -> dict[str, tuple[float, ...] | float | None]:
+    """The stored parameters by property name (None where one is missing), for panels and tests."""
+    return {name: (_as_tuple(scene[name]) if name in scene else None) for name in PARAMETER_NAMES}
+
+
+def keyframe_shader_parameters(scene: bpy.types.Scene, frame: float | None = None) -> None:
+    """Insert a keyframe on every stored parameter at ``frame`` (the current frame by default)."""
+    frame = scene.frame_current if frame is None else frame
+    for name in PARAMETER_NAMES:
+        if name in scene:
+            scene.keyframe_insert(f'["{name}"]', frame=frame)
+
+
+def clear_shader_parameters(scene: bpy.types.Scene) -> None:
+    """Remove the parameters (and their animation curves) from ``scene``; the groups then read zeros."""
+    animation = scene.animation_data
+    if animation is not None and animation.action is not None:
+        for name in PARAMETER_NAMES:
+            path = f'["{name}"]'
+            for fcurve in _fcurves(animation.action):
+                if fcurve.data_path == path:
+                    _remove_fcurve(animation.action, fcurve)
+    for name in PARAMETER_NAMES:
+        if name in scene:
+            del scene[name]
+    scene.update_tag()
+
+
+def _as_tuple(value) -> tuple[float, ...] | float:
+    """An ID property value as a float or a tuple of floats."""
+    if isinstance(value, (int, float)):
+        return float(value)
+    return tuple(float(v) for v in value)
+
+
+def _fcurves(action: bpy.types.Action) -> list[bpy.types.FCurve]:
+    """Every F-curve of ``action`` (Blender 4.4+ layered actions keep them in channelbags)."""
+    curves = list(getattr(action, "fcurves", None) or [])
+    for layer in getattr(action, "layers", ()):
+        for strip in layer.strips:
+            for channelbag in getattr(strip, "channelbags", ()):
+                curves.extend(channelbag.fcurves)
+    return curves
+
+
+def _remove_fcurve(action: bpy.types.Action, fcurve: bpy.types.FCurve) -> None:
+    """Remove ``fcurve`` from whichever container of ``action`` holds it."""
+    legacy = getattr(action, "fcurves", None)
+    if legacy is not None and any(c == fcurve for c in legacy):
+        legacy.remove(fcurve)
+        return
+    for layer in getattr(action, "layers", ()):
+        for strip in layer.strips:
+            for channelbag in getattr(strip, "channelbags", ()):
+                if any(c == fcurve for c in channelbag.fcurves):
+                    channelbag.fcurves.remove(fcurve)
+                    return

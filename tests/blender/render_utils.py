@@ -1,0 +1,154 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Tiny-render helpers shared by the Blender tests: an empty scene, a camera, planes, one render to numpy.
+
+Renders are read back from a 32-bit float OpenEXR file. EXR output holds the scene-linear render
+result, so the view transform, look, exposure and gamma never touch the numbers a test compares
+(they are still set to neutral values, in case a caller saves another format). Each pixel is one
+sample at the pixel centre: Cycles uses 1 sample with a 0.01 px box filter, Eevee 1 sample with a
+zero filter size.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Sequence
+
+import bpy
+import numpy as np
+
+#: Eevee's engine id: ``BLENDER_EEVEE_NEXT`` in Blender 4.2-4.5, ``BLENDER_EEVEE`` from 5.0.
+EEVEE_ENGINE = "BLENDER_EEVEE_NEXT" if bpy.app.version < (5, 0, 0) else "BLENDER_EEVEE"
+ENGINES = ("CYCLES", EEVEE_ENGINE)
+
+
+def reset_scene() -> bpy.types.Scene:
+    """Load an empty factory file and return its scene (no objects, no world)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    return bpy.context.scene
+
+
+def make_camera(scene: bpy.types.Scene, *, location: Sequence[float] = (0.0, 0.0, 0.0),
+                rotation_euler: Sequence[float] = (0.0, 0.0, 0.0), fov_rad: float = math.radians(60.0),
+                orthographic_scale: float | None = None, clip_start: float = 0.1,
+                clip_end: float = 1000.0) -> bpy.types.Object:
+    """Add a camera (perspective with horizontal field of view ``fov_rad``, or orthographic) and make it active.
+
+    With the default rotation the camera looks down -Z with +Y up, the image's +x to the right.
+    Keep ``clip_end / clip_start`` at about 1e4 or less: with a much larger ratio (1e-3 to 1e6 measured)
+    Eevee silently drops objects that do not cover the view centre, in 4.2 and 5.0 alike.
+    """
+    data = bpy.data.cameras.new("Test Camera")
+    data.sensor_fit = "HORIZONTAL"
+    if orthographic_scale is None:
+        data.type = "PERSP"
+        data.angle = fov_rad
+    else:
+        data.type = "ORTHO"
+        data.ortho_scale = orthographic_scale
+    data.clip_start = clip_start
+    data.clip_end = clip_end
+    camera = bpy.data.objects.new("Test Camera", data)
+    camera.location = location
+    camera.rotation_euler = rotation_euler
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    return camera
+
+
+def make_plane(scene: bpy.types.Scene, name: str, corners: Sequence[Sequence[float]],
+               material: bpy.types.Material | None = None) -> bpy.types.Object:
+    """Add a quad with the four given world-space corners (counter-clockwise seen from the front)."""
+    points = np.asarray(corners, dtype=np.float64)
+    centre = points.mean(axis=0)
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([tuple(p) for p in (points - centre).tolist()], [], [(0, 1, 2, 3)])
+    mesh.update()
+    if material is not None:
+        mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = tuple(centre)
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def set_engine(scene: bpy.types.Scene, engine: str, *, width: int, height: int) -> None:
+    """Select ``"CYCLES"`` or ``"EEVEE"`` (either Eevee id works) and set one centred sample per pixel."""
+    if engine.startswith("BLENDER_EEVEE") or engine == "EEVEE":
+        engine = EEVEE_ENGINE
+    scene.render.engine = engine
+    render = scene.render
+    if width < 4 or height < 4:
+        raise ValueError(f"render size {width}x{height}: Blender renders at least 4x4 pixels; use 4 or more")
+    render.resolution_x = width
+    render.resolution_y = height
+    render.resolution_percentage = 100
+    render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+    render.film_transparent = False
+    render.use_compositing = False
+    render.use_sequencer = False
+    render.threads_mode = "FIXED"
+    render.threads = 2
+    if engine == "CYCLES":
+        cycles = scene.cycles
+        cycles.device = "CPU"
+        cycles.samples = 1
+        cycles.use_adaptive_sampling = False
+        cycles.use_denoising = False
+        cycles.pixel_filter_type = "BOX"
+        cycles.filter_width = 0.01
+        cycles.max_bounces = 0
+    else:
+        scene.eevee.taa_render_samples = 1
+        render.filter_size = 0.0
+    view = scene.view_settings
+    view.view_transform = "Standard"
+    view.look = "None"
+    view.exposure = 0.0
+    view.gamma = 1.0
+    scene.display_settings.display_device = "sRGB"
+
+
+def render_to_array(scene: bpy.types.Scene | None = None) -> np.ndarray:
+    """Render the active camera and return the linear float RGBA image, shape (height, width, 4), row 0 at the top.
+
+    The render is written to a temporary 32-bit OpenEXR file and read back through ``bpy.data.images``.
+    """
+    scene = scene or bpy.context.scene
+    settings = scene.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_mode = "RGBA"
+    settings.color_depth = "32"
+    settings.exr_codec = "ZIP"
+    with tempfile.TemporaryDirectory(prefix="atmos-render-") as folder:
+        path = os.path.join(folder, "render.exr")
+        scene.render.filepath = path
+        bpy.ops.render.render(write_still=True, scene=scene.name)
+        image = bpy.data.images.load(path, check_existing=False)
+        try:
+            width, height = image.size
+            pixels = np.empty(width * height * 4, dtype=np.float32)
+            image.pixels.foreach_get(pixels)
+        finally:
+            bpy.data.images.remove(image)
+    return pixels.reshape(height, width, 4)[::-1].copy()
+
+
+def pixel_centre_directions(camera: bpy.types.Object, width: int, height: int) -> np.ndarray:
+    """World-space unit view directions through each pixel centre of a perspective camera, shape (height, width, 3).
+
+    Row 0 is the top of the image (as :func:`render_to_array` returns it).
+    """
+    data = camera.data
+    if data.type != "PERSP" or data.sensor_fit != "HORIZONTAL":
+        raise ValueError("pixel_centre_directions needs a perspective camera with sensor_fit 'HORIZONTAL'")
+    half = math.tan(data.angle / 2.0)
+    x = ((np.arange(width) + 0.5) / width * 2.0 - 1.0) * half
+    y = ((np.arange(height) + 0.5) / height * 2.0 - 1.0) * half * height / width
+    y = y[::-1]
+    xx, yy = np.meshgrid(x, y)
+    local = np.stack([xx, yy, -np.ones_like(xx)], axis=-1)
+    rotation = np.array(camera.matrix_world.to_3x3(), dtype=np.float64)
+    world = local @ rotation.T
+    return world / np.linalg.norm(world, axis=-1, keepdims=True)

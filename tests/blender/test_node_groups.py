@@ -1,0 +1,311 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The "Atmos Aerial Perspective" node group: parity with the physics core in Cycles and Eevee, rebuild rules.
+
+Parity scene: a perspective camera, emissive planes at known distances showing the group's
+Transmittance (top half of the image) and Inscattering times a known gain (bottom half). Each pixel
+is one sample at the pixel centre, so the expected value is the physics core's float32 result for the
+pixel-centre ray. Cycles must agree within 0.2 %, Eevee within 1 % (Eevee's render result is half
+float: about 0.05 % for values of order 0.1-1), relative to max(|expected|, 1e-4).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import bpy
+import numpy as np
+import pytest
+
+import render_utils as ru
+from atmos_addon.physics import Atmosphere, extinction, inscattering
+from node_groups import (GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING, OUTPUT_TRANSMITTANCE, PARAMETER_NAMES,
+                         AerialFeatures, clear_shader_parameters, describe_features, ensure_aerial_perspective_group,
+                         node_count, read_shader_parameters, write_shader_parameters)
+from node_groups.aerial_perspective import NODE_COUNTS
+
+WIDTH, HEIGHT = 12, 8
+FOV = math.radians(60.0)
+DEPTHS_UNITS = (300.0, 3000.0, 20000.0)  # one plane per third of the image
+GAIN_NUMERATOR = 1000.0  # inscattering is shown times 1000 / depth, of order 0.01-1
+SUN_IRRADIANCE = (3.0, 3.5, 4.0)
+ATMOSPHERE = Atmosphere(mie_g=(0.7, 0.76, 0.8))
+TOLERANCE = {"CYCLES": 2e-3, ru.EEVEE_ENGINE: 1e-2}
+#: Errors are relative to max(|expected|, this): Eevee's half-float film keeps 11 bits down to 6e-5 and
+#: fewer below (the 200 km plane's blue transmittance is 2e-6), so tiny values are compared absolutely.
+RELATIVE_FLOOR = 1e-4
+PARITY_ERRORS: dict[str, float] = {}
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=np.float64)
+    return v / np.linalg.norm(v)
+
+
+def _write(scene, atm: Atmosphere, sun_direction, metres_per_unit: float, sun_irradiance=SUN_IRRADIANCE) -> None:
+    write_shader_parameters(scene, beta_rayleigh=atm.rayleigh_scattering, beta_mie=atm.mie_scattering,
+                            beta_mie_absorption=atm.mie_absorption, mie_g=atm.mie_g, sun_direction=sun_direction,
+                            sun_irradiance=sun_irradiance, metres_per_unit=metres_per_unit)
+
+
+def _new_material(name: str) -> bpy.types.Material:
+    """A node-based material (``use_nodes`` is implied, and deprecated, from Blender 5.0)."""
+    material = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        material.use_nodes = True
+    return material
+
+
+def _weighted_emission_material(group: bpy.types.ShaderNodeTree) -> bpy.types.Material:
+    """Emission = Transmittance * w_T + Inscattering * w_L, the weights read from object properties.
+
+    A 0/1 weight selects exactly (x * 1 + y * 0 = x), unlike a Mix node's a + t (b - a).
+    """
+    material = _new_material("Atmos Test")
+    nodes, links = material.node_tree.nodes, material.node_tree.links
+    nodes.clear()
+    group_node = nodes.new("ShaderNodeGroup")
+    group_node.node_tree = group
+    weights = []
+    for name in ("atmos_test_w_t", "atmos_test_w_l"):
+        attribute = nodes.new("ShaderNodeAttribute")
+        attribute.attribute_type = "OBJECT"
+        attribute.attribute_name = name
+        weights.append(attribute.outputs["Fac"])
+    products = []
+    for output, weight in zip((OUTPUT_TRANSMITTANCE, OUTPUT_INSCATTERING), weights):
+        multiply = nodes.new("ShaderNodeVectorMath")
+        multiply.operation = "SCALE"
+        links.new(group_node.outputs[output], multiply.inputs[0])
+        links.new(weight, multiply.inputs["Scale"])
+        products.append(multiply.outputs["Vector"])
+    add = nodes.new("ShaderNodeVectorMath")
+    add.operation = "ADD"
+    links.new(products[0], add.inputs[0])
+    links.new(products[1], add.inputs[1])
+    emission = nodes.new("ShaderNodeEmission")
+    emission.inputs["Strength"].default_value = 1.0
+    links.new(add.outputs["Vector"], emission.inputs["Color"])
+    output = nodes.new("ShaderNodeOutputMaterial")
+    links.new(emission.outputs["Emission"], output.inputs["Surface"])
+    return material
+
+
+def _parity_scene(features: AerialFeatures = AerialFeatures()):
+    """Camera looking along +Y (tilted a little), six planes: three depths x (transmittance, inscattering)."""
+    scene = ru.reset_scene()
+    camera = ru.make_camera(scene, rotation_euler=(math.radians(95.0), 0.0, math.radians(20.0)), fov_rad=FOV,
+                            clip_start=10.0, clip_end=1.0e5)
+    bpy.context.view_layer.update()
+    material = _weighted_emission_material(ensure_aerial_perspective_group(features))
+    to_world = np.array(camera.matrix_world, dtype=np.float64)
+    half_w = math.tan(FOV / 2.0)
+    half_h = half_w * HEIGHT / WIDTH
+    for column, depth in enumerate(DEPTHS_UNITS):
+        x0, x1 = (-1.0 + 2.0 * column / 3.0) * half_w * depth, (-1.0 + 2.0 * (column + 1) / 3.0) * half_w * depth
+        for half, (y0, y1) in enumerate(((0.0, half_h * depth), (-half_h * depth, 0.0))):
+            local = np.array([(x0, y0, -depth, 1.0), (x1, y0, -depth, 1.0), (x1, y1, -depth, 1.0),
+                              (x0, y1, -depth, 1.0)])
+            plane = ru.make_plane(scene, f"plane {depth:g} {half}", (local @ to_world.T)[:, :3], material)
+            plane["atmos_test_w_t"] = 1.0 if half == 0 else 0.0
+            plane["atmos_test_w_l"] = 0.0 if half == 0 else GAIN_NUMERATOR / depth
+    return scene, camera
+
+
+def _expected(camera, metres_per_unit: float, sun_direction, atm: Atmosphere = ATMOSPHERE) -> np.ndarray:
+    """The physics core's float32 value for every pixel-centre ray of the parity scene, (HEIGHT, WIDTH, 3)."""
+    directions = ru.pixel_centre_directions(camera, WIDTH, HEIGHT)
+    forward = -np.array(camera.matrix_world.to_3x3().col[2], dtype=np.float64)
+    cos_to_axis = directions @ forward
+    depth = np.repeat(np.array(DEPTHS_UNITS), WIDTH // 3)[np.newaxis, :]
+    distance_m = depth / cos_to_axis * metres_per_unit
+    mu = directions @ _unit(sun_direction)
+    transmittance = extinction(distance_m, atm, np.float32)
+    light = inscattering(distance_m, mu, atm, SUN_IRRADIANCE, np.float32)
+    gain = (GAIN_NUMERATOR / depth)[..., np.newaxis]
+    top = np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2
+    return np.where(top, transmittance, light * gain)
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_parity_with_physics_core(engine):
+    scene, camera = _parity_scene()
+    ru.set_engine(scene, engine, width=WIDTH, height=HEIGHT)
+    forward = -np.array(camera.matrix_world.to_3x3().col[2], dtype=np.float64)
+    toward_view = _unit(forward + np.array([0.1, 0.0, 0.12]))  # about 9 deg from the view axis
+    away = _unit([-0.3, -0.8, 0.5])
+    worst = 0.0
+    # Parameters change between renders without touching the tree (Eevee keeps its compiled shader).
+    for metres_per_unit, sun in ((1.0, toward_view), (1.0, away), (10.0, toward_view)):
+        _write(scene, ATMOSPHERE, sun, metres_per_unit)
+        image = ru.render_to_array(scene)[..., :3]
+        expected = _expected(camera, metres_per_unit, sun)
+        relative = np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
+        assert np.all(np.isfinite(image))
+        assert relative.max() < TOLERANCE[engine], (
+            f"{engine} m/unit {metres_per_unit} sun {sun.round(3).tolist()}: worst relative error "
+            f"{relative.max():.2e} at pixel {np.unravel_index(relative.argmax(), relative.shape)}")
+        worst = max(worst, float(relative.max()))
+    PARITY_ERRORS[engine] = worst
+    print(f"\n{engine} (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
+
+
+def test_rayleigh_only_group_matches_core_in_cycles():
+    atm = Atmosphere(mie_scattering=0.0, mie_absorption=0.0)
+    scene, camera = _parity_scene(AerialFeatures(mie=False, absorption=False))
+    ru.set_engine(scene, "CYCLES", width=WIDTH, height=HEIGHT)
+    sun = _unit([0.2, 0.9, 0.3])
+    _write(scene, atm, sun, 2.0)
+    image = ru.render_to_array(scene)[..., :3]
+    expected = _expected(camera, 2.0, sun, atm)
+    np.testing.assert_allclose(image, expected, rtol=2e-3, atol=1e-7)
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_finite_at_zero_coefficients_zero_distance_and_large_distance(engine):
+    """No NaN/Inf: zero coefficients, a plane at the near clip, 1e7 m, |g| = 0.999 with mu = +-1."""
+    scene = ru.reset_scene()
+    ru.make_camera(scene, fov_rad=math.radians(40.0), clip_start=0.01, clip_end=100.0)
+    material = _weighted_emission_material(ensure_aerial_perspective_group(AerialFeatures()))
+    near, far = 0.0101, 99.0  # Camera at the origin looking down -Z; left half near, right half far.
+    for name, depth, x0, x1 in (("near", near, -1.0, 0.0), ("far", far, 0.0, 1.0)):
+        corners = [(x0 * depth, -depth, -depth), (x1 * depth, -depth, -depth), (x1 * depth, depth, -depth),
+                   (x0 * depth, depth, -depth)]
+        plane = ru.make_plane(scene, name, corners, material)
+        plane["atmos_test_w_t"] = 1.0  # shows F_ex + L_in
+        plane["atmos_test_w_l"] = 1.0
+    ru.set_engine(scene, engine, width=5, height=5)  # odd: the centre pixel looks exactly down the axis
+    zero = (0.0, 0.0, 0.0)
+    forward, backward = (0.0, 0.0, -1.0), (0.0, 0.0, 1.0)
+    cases = [
+        dict(beta_rayleigh=zero, beta_mie=zero, beta_mie_absorption=zero, mie_g=0.0, sun_direction=forward,
+             metres_per_unit=1.0),
+        dict(beta_rayleigh=zero, beta_mie=zero, beta_mie_absorption=zero, mie_g=0.999, sun_direction=forward,
+             metres_per_unit=1.0e5),
+        dict(beta_rayleigh=(5.8e-6, 1.35e-5, 3.31e-5), beta_mie=(2e-5,) * 3, beta_mie_absorption=(2e-6,) * 3,
+             mie_g=0.999, sun_direction=forward, metres_per_unit=1.0e5),  # far plane at 9.9e6 m
+        dict(beta_rayleigh=(5.8e-6, 1.35e-5, 3.31e-5), beta_mie=(2e-5,) * 3, beta_mie_absorption=zero,
+             mie_g=-0.999, sun_direction=backward, metres_per_unit=1.0e5),
+        dict(beta_rayleigh=(5.8e-6, 1.35e-5, 3.31e-5), beta_mie=(2e-5,) * 3, beta_mie_absorption=(2e-6,) * 3,
+             mie_g=0.999, sun_direction=backward, metres_per_unit=1.0e-3),  # near plane at 1e-5 m
+    ]
+    for case in cases:
+        write_shader_parameters(scene, sun_irradiance=SUN_IRRADIANCE, **case)
+        image = ru.render_to_array(scene)[..., :3]
+        assert np.all(np.isfinite(image)), f"{engine}: non-finite pixels for {case}"
+        assert np.all(image >= 0.0), f"{engine}: negative pixels for {case}"
+        if case["beta_rayleigh"] == zero:  # transmittance 1, no in-scattering
+            np.testing.assert_allclose(image, 1.0, rtol=0, atol=1e-6)
+
+
+def test_ensure_group_rebuilds_only_when_stale():
+    ru.reset_scene()
+    features = AerialFeatures(mie=True, absorption=True)
+    tree = ensure_aerial_perspective_group(features)
+    assert tree.name == GROUP_NAME
+    assert tree["atmos_version"] == NODE_GROUP_VERSION and tree["atmos_features"] == "rayleigh+mie+abs"
+    before = [(node.name, node.as_pointer()) for node in tree.nodes]
+    again = ensure_aerial_perspective_group(features)
+    assert again.as_pointer() == tree.as_pointer()
+    assert [(node.name, node.as_pointer()) for node in again.nodes] == before
+
+    # A material's group node keeps its links across a rebuild for other features and a stale version.
+    material = _new_material("user")
+    group_node = material.node_tree.nodes.new("ShaderNodeGroup")
+    group_node.node_tree = tree
+    emission = material.node_tree.nodes.new("ShaderNodeEmission")
+    material.node_tree.links.new(group_node.outputs[OUTPUT_INSCATTERING], emission.inputs["Color"])
+    rebuilt = ensure_aerial_perspective_group(AerialFeatures(mie=False, absorption=True))
+    assert rebuilt.as_pointer() == tree.as_pointer() and rebuilt["atmos_features"] == "rayleigh+abs"
+    tree["atmos_version"] = NODE_GROUP_VERSION - 1
+    rebuilt = ensure_aerial_perspective_group(AerialFeatures(mie=False, absorption=True))
+    assert rebuilt["atmos_version"] == NODE_GROUP_VERSION
+    assert len(bpy.data.node_groups) == 1
+    assert emission.inputs["Color"].is_linked
+    assert emission.inputs["Color"].links[0].from_socket.name == OUTPUT_INSCATTERING
+    outputs = [item.name for item in rebuilt.interface.items_tree if item.item_type == "SOCKET"]
+    assert outputs == [OUTPUT_TRANSMITTANCE, OUTPUT_INSCATTERING]
+
+
+def test_features_build_only_the_terms_needed():
+    ru.reset_scene()
+    counts, hg_nodes, attributes = {}, {}, {}
+    for mie in (False, True):
+        for absorption in (False, True):
+            features = AerialFeatures(mie=mie, absorption=absorption)
+            tree = ensure_aerial_perspective_group(features)
+            counts[features.key] = node_count(tree)
+            hg_nodes[features.key] = sum(1 for n in tree.nodes if n.label == "Phi_HG")
+            attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
+            assert describe_features(features).endswith(f": {counts[features.key]} nodes")
+    assert counts == NODE_COUNTS
+    assert hg_nodes == {"rayleigh": 0, "rayleigh+abs": 0, "rayleigh+mie": 1, "rayleigh+mie+abs": 1}
+    assert counts["rayleigh"] < counts["rayleigh+abs"] < counts["rayleigh+mie"] < counts["rayleigh+mie+abs"]
+    assert "atmos_beta_mie" not in attributes["rayleigh+abs"] and "atmos_mie_g" not in attributes["rayleigh"]
+    assert "atmos_beta_mie_absorption" not in attributes["rayleigh+mie"]
+    assert attributes["rayleigh+mie+abs"] == set(PARAMETER_NAMES)
+    full = NODE_COUNTS["rayleigh+mie+abs"]
+    assert describe_features(AerialFeatures(True, True)) == f"Rayleigh + Mie + absorption: {full} nodes"
+
+
+def test_parameters_round_trip_validate_and_clear():
+    scene = ru.reset_scene()
+    write_shader_parameters(scene, beta_rayleigh=(5.8e-6, 1.35e-5, 3.31e-5), beta_mie=2e-5, beta_mie_absorption=0.0,
+                            mie_g=1.5, sun_direction=(0.0, 3.0, 4.0), sun_irradiance=(3.0, 3.5, 4.0),
+                            metres_per_unit=0.01)
+    values = read_shader_parameters(scene)
+    assert values["atmos_sun_direction"] == pytest.approx((0.0, 0.6, 0.8))
+    assert values["atmos_mie_g"] == pytest.approx((0.999,) * 3)
+    assert values["atmos_beta_mie"] == pytest.approx((2e-5,) * 3)
+    assert values["atmos_metres_per_unit"] == pytest.approx(0.01)
+    with pytest.raises(ValueError, match="atmos_beta_rayleigh"):
+        write_shader_parameters(scene, beta_rayleigh=(-1.0, 0.0, 0.0), beta_mie=0.0, beta_mie_absorption=0.0,
+                                mie_g=0.0, sun_direction=(0, 0, 1), sun_irradiance=1.0, metres_per_unit=1.0)
+    with pytest.raises(ValueError, match="zero length"):
+        write_shader_parameters(scene, beta_rayleigh=0.0, beta_mie=0.0, beta_mie_absorption=0.0,
+                                mie_g=0.0, sun_direction=(0, 0, 0), sun_irradiance=1.0, metres_per_unit=1.0)
+    scene.keyframe_insert('["atmos_sun_direction"]', frame=1)
+    clear_shader_parameters(scene)
+    assert all(value is None for value in read_shader_parameters(scene).values())
+
+
+def test_keyframed_sun_direction_renders_per_frame_in_cycles():
+    """Animated parameters evaluate per frame in a render: farms need no add-on for an animated sun."""
+    scene = ru.reset_scene()
+    ru.make_camera(scene, fov_rad=math.radians(30.0), clip_start=1.0, clip_end=1.0e4)
+    material = _weighted_emission_material(ensure_aerial_perspective_group(AerialFeatures()))
+    plane = ru.make_plane(scene, "wall", [(-1e3, -1e3, -1e3), (1e3, -1e3, -1e3), (1e3, 1e3, -1e3), (-1e3, 1e3, -1e3)],
+                          material)
+    plane["atmos_test_w_t"] = 0.0
+    plane["atmos_test_w_l"] = 1.0
+    ru.set_engine(scene, "CYCLES", width=5, height=5)  # odd: the centre pixel looks down the axis
+    atm = ATMOSPHERE
+    suns = {1: _unit([0.0, 0.0, -1.0]), 11: _unit([0.0, 1.0, 0.0])}
+    for frame, sun in suns.items():
+        _write(scene, atm, sun, 1.0)
+        scene.keyframe_insert('["atmos_sun_direction"]', frame=frame)
+    for frame in (1, 6, 11):
+        scene.frame_set(frame)
+        sun = _unit(scene["atmos_sun_direction"])  # between keys: interpolated, normalised by the group
+        assert frame != 6 or 0.1 < sun[1] < 0.9
+        centre = ru.render_to_array(scene)[2, 2, :3]
+        mu = float(np.dot(_unit([0.0, 0.0, -1.0]), sun))
+        np.testing.assert_allclose(centre, inscattering(1.0e3, mu, atm, SUN_IRRADIANCE, np.float32), rtol=2e-3)
+
+
+def test_render_utils_reads_linear_values():
+    """The helper returns the scene-linear render (no view transform): an emission of 0.25 reads 0.25."""
+    scene = ru.reset_scene()
+    ru.make_camera(scene)
+    material = _new_material("grey")
+    emission = material.node_tree.nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (0.25, 2.0, 1e-4, 1.0)
+    material.node_tree.links.new(emission.outputs[0], material.node_tree.nodes["Material Output"].inputs["Surface"])
+    ru.make_plane(scene, "wall", [(-50, -50, -5), (50, -50, -5), (50, 50, -5), (-50, 50, -5)], material)
+    scene.view_settings.view_transform = "Standard"
+    ru.set_engine(scene, "CYCLES", width=6, height=4)
+    start = time.time()
+    image = ru.render_to_array(scene)
+    assert image.shape == (4, 6, 4)
+    np.testing.assert_allclose(image[..., :3], np.broadcast_to((0.25, 2.0, 1e-4), (4, 6, 3)), rtol=1e-6)
+    assert time.time() - start < 30.0
