@@ -1,0 +1,325 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The compositor half of aerial perspective: AOV declarations and one inserted group node.
+
+Per pixel the materials leave three AOV sums (see :mod:`.materials`): ``T = sum a_i T_i``,
+``L = sum a_i L_i`` and the coverage ``C = sum a_i`` over the surfaces that wrote (alpha a_i,
+1 for opaque surfaces, averaged over the pixel's samples). The composite is
+
+    k = max(C, 1)
+    out = Image * (T + max(1 - C, 0)) / k + L / k
+
+- a fully covered pixel (C = 1): ``Image * T + L`` -- exactly L0 F_ex + L_in (Hoffman & Preetham eq. 16);
+- a sky pixel (nothing wrote, every AOV 0): ``Image`` untouched;
+- a silhouette pixel covering a fraction c of a surface: the sky part passes through, the surface
+  part gets its atmosphere (first order: the sky's share of the pixel is scaled by T as well);
+- a pixel where a cut-out and the surface behind it both wrote (C > 1): a coverage-weighted mean.
+
+The node tree is inserted non-destructively: the links that left Render Layers.Image are moved to
+leave our group's output; removing the group puts them back. What must be restored (the previous
+``use_nodes`` / ``compositing_node_group`` / ``use_compositing`` and which nodes and AOVs we created)
+is stored in the scene (custom property ``atmos_compositor``) so it survives save and reload.
+Blender 4.2-4.5 composite through ``scene.node_tree`` (Composite node); 5.0 through the node group
+in ``scene.compositing_node_group`` (its Group Output).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import bpy
+
+from .materials import AOV_COVERAGE, AOV_INSCATTERING, AOV_TRANSMITTANCE, TAG
+
+GROUP_NAME = "Atmos Aerial Composite"
+GROUP_VERSION = 1
+VERSION_KEY = "atmos_version"
+STATE_KEY = "atmos_compositor"
+COMPOSITE_NODE = "Atmos Aerial Composite"
+CREATED_TREE_NAME = "Atmos Compositor"
+AOVS = ((AOV_TRANSMITTANCE, "COLOR"), (AOV_INSCATTERING, "COLOR"), (AOV_COVERAGE, "VALUE"))
+
+#: Blender 5.0 replaced scene.node_tree / use_nodes by scene.compositing_node_group.
+GROUP_API = "compositing_node_group" in bpy.types.Scene.bl_rna.properties
+
+
+def _silently(function, *args):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return function(*args)
+
+
+# -- the combining node group ------------------------------------------------------------------
+
+
+def _mix(nodes, blend: str, location):
+    if GROUP_API:
+        node = nodes.new("ShaderNodeMix")
+        node.data_type = "RGBA"
+        node.blend_type = blend
+        node.clamp_result = False
+        inputs = {socket.identifier: socket for socket in node.inputs}
+        inputs["Factor_Float"].default_value = 1.0
+        out = next(socket for socket in node.outputs if socket.identifier == "Result_Color")
+        a, b = inputs["A_Color"], inputs["B_Color"]
+    else:
+        node = nodes.new("CompositorNodeMixRGB")
+        node.blend_type = blend
+        node.use_clamp = False
+        node.inputs[0].default_value = 1.0
+        a, b, out = node.inputs[1], node.inputs[2], node.outputs[0]
+    node.location = location
+    return a, b, out
+
+
+def _math(nodes, operation: str, location, *, clamp: bool = False):
+    node = nodes.new("ShaderNodeMath" if GROUP_API else "CompositorNodeMath")
+    node.operation = operation
+    node.use_clamp = clamp
+    node.location = location
+    return node
+
+
+def _build_group(tree) -> None:
+    tree.nodes.clear()
+    tree.interface.clear()
+    for name, socket_type in (
+        ("Image", "NodeSocketColor"),
+        ("Transmittance", "NodeSocketColor"),
+        ("Inscattering", "NodeSocketColor"),
+        ("Coverage", "NodeSocketFloat"),
+    ):
+        tree.interface.new_socket(name, in_out="INPUT", socket_type=socket_type)
+    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    nodes, links = tree.nodes, tree.links
+    group_in = nodes.new("NodeGroupInput")
+    group_in.location = (-600, 0)
+    group_out = nodes.new("NodeGroupOutput")
+    group_out.location = (800, 0)
+
+    k = _math(nodes, "MAXIMUM", (-350, -300))
+    links.new(group_in.outputs["Coverage"], k.inputs[0])
+    k.inputs[1].default_value = 1.0
+    uncovered = _math(nodes, "SUBTRACT", (-350, -120), clamp=True)
+    uncovered.inputs[0].default_value = 1.0
+    links.new(group_in.outputs["Coverage"], uncovered.inputs[1])
+
+    a, b, factor_sum = _mix(nodes, "ADD", (-100, 100))
+    links.new(group_in.outputs["Transmittance"], a)
+    links.new(uncovered.outputs[0], b)
+    a, b, factor = _mix(nodes, "DIVIDE", (100, 100))
+    links.new(factor_sum, a)
+    links.new(k.outputs[0], b)
+    a, b, attenuated = _mix(nodes, "MULTIPLY", (300, 200))
+    links.new(group_in.outputs["Image"], a)
+    links.new(factor, b)
+    a, b, inscattering = _mix(nodes, "DIVIDE", (300, -150))
+    links.new(group_in.outputs["Inscattering"], a)
+    links.new(k.outputs[0], b)
+    a, b, result = _mix(nodes, "ADD", (550, 0))
+    links.new(attenuated, a)
+    links.new(inscattering, b)
+    links.new(result, group_out.inputs["Image"])
+    tree[VERSION_KEY] = GROUP_VERSION
+
+
+def ensure_composite_group():
+    """Get or create the "Atmos Aerial Composite" compositor group; rebuilt in place when stale."""
+    tree = bpy.data.node_groups.get(GROUP_NAME)
+    if tree is not None and tree.bl_idname != "CompositorNodeTree":
+        tree.name = GROUP_NAME + " (not Atmos)"
+        tree = None
+    if tree is None:
+        tree = bpy.data.node_groups.new(GROUP_NAME, "CompositorNodeTree")
+    if tree.get(VERSION_KEY) != GROUP_VERSION:
+        _build_group(tree)
+    return tree
+
+
+# -- view layer AOVs ---------------------------------------------------------------------------
+
+
+def declare_aovs(scene, state: dict) -> None:
+    """Add the Atmos AOVs to every view layer that lacks them; remember which we added."""
+    added = list(state.get("added_aovs", []))
+    for layer in scene.view_layers:
+        existing = {aov.name for aov in layer.aovs}
+        for name, kind in AOVS:
+            if name not in existing:
+                aov = layer.aovs.add()
+                aov.name = name
+                aov.type = kind
+                added.append(f"{layer.name}\t{name}")
+    state["added_aovs"] = added
+
+
+def remove_aovs(scene, state: dict) -> None:
+    for entry in state.get("added_aovs", []):
+        layer_name, _, name = entry.partition("\t")
+        layer = scene.view_layers.get(layer_name)
+        if layer is None:
+            continue
+        aov = layer.aovs.get(name)
+        if aov is not None:
+            layer.aovs.remove(aov)
+
+
+# -- the scene's compositor tree ---------------------------------------------------------------
+
+
+def _tag(node, name: str):
+    node.name = name
+    node[TAG] = 1
+    return node
+
+
+def _scene_tree(scene, state: dict):
+    """The scene's compositor tree, created (and recorded for removal) when there is none."""
+    if GROUP_API:
+        state.setdefault("had_group", scene.compositing_node_group is not None)
+        tree = scene.compositing_node_group
+        if tree is None:
+            tree = bpy.data.node_groups.new(CREATED_TREE_NAME, "CompositorNodeTree")
+            tree[TAG] = 1
+            scene.compositing_node_group = tree
+        return tree
+    state.setdefault("use_nodes", bool(_silently(getattr, scene, "use_nodes")))
+    had_tree = scene.node_tree is not None
+    before = set(scene.node_tree.nodes.keys()) if had_tree else set()
+    scene.use_nodes = True
+    tree = scene.node_tree
+    # Setting use_nodes on a scene without a tree creates default nodes: they are ours to remove.
+    for node in tree.nodes:
+        if node.name not in before:
+            node[TAG] = 1
+    return tree
+
+
+def _output_input(tree, state: dict):
+    """The socket whose input is the final composite: created (tagged) when missing."""
+    if GROUP_API:
+        output = next((n for n in tree.nodes if n.bl_idname == "NodeGroupOutput" and n.is_active_output), None)
+        if output is None:
+            output = next((n for n in tree.nodes if n.bl_idname == "NodeGroupOutput"), None)
+        if not any(item.item_type == "SOCKET" and item.in_out == "OUTPUT" for item in tree.interface.items_tree):
+            tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+            state["added_output_socket"] = True
+        if output is None:
+            output = _tag(tree.nodes.new("NodeGroupOutput"), "Atmos Group Output")
+            output.location = (600, 0)
+        return output.inputs[0]
+    output = next((n for n in tree.nodes if n.bl_idname == "CompositorNodeComposite"), None)
+    if output is None:
+        output = _tag(tree.nodes.new("CompositorNodeComposite"), "Atmos Composite")
+        output.location = (600, 0)
+    return output.inputs["Image"]
+
+
+def _render_layer_nodes(tree, scene) -> list:
+    return [
+        node for node in tree.nodes
+        if node.bl_idname == "CompositorNodeRLayers" and not node.mute and node.scene in (None, scene)
+    ]
+
+
+def install(scene) -> list[str]:
+    """Declare the AOVs and insert the combining group after every Render Layers node of the scene."""
+    messages: list[str] = []
+    state = scene[STATE_KEY].to_dict() if STATE_KEY in scene else None
+    if state is not None and _installed_nodes(scene):
+        return messages  # already installed: idempotent
+    state = state or {}
+    state.setdefault("use_compositing", bool(scene.render.use_compositing))
+    declare_aovs(scene, state)
+    group = ensure_composite_group()
+    tree = _scene_tree(scene, state)
+    final_input = _output_input(tree, state)
+    layers = _render_layer_nodes(tree, scene)
+    if not layers:
+        layer_node = _tag(tree.nodes.new("CompositorNodeRLayers"), "Atmos Render Layers")
+        layer_node.scene = scene
+        layer_node.location = (-400, 0)
+        layers = [layer_node]
+    for index, layer_node in enumerate(layers):
+        image = layer_node.outputs["Image"]
+        targets = [link.to_socket for link in image.links]
+        if not targets and index == 0 and not final_input.is_linked:
+            targets = [final_input]
+        combine = _tag(tree.nodes.new("CompositorNodeGroup"), f"{COMPOSITE_NODE} {index}" if index else COMPOSITE_NODE)
+        combine.node_tree = group
+        combine.label = "Atmos: aerial perspective"
+        combine.location = (layer_node.location.x + 300, layer_node.location.y + 250)
+        for link in list(image.links):
+            tree.links.remove(link)
+        tree.links.new(image, combine.inputs["Image"])
+        missing = []
+        for aov_name, socket_name in (
+            (AOV_TRANSMITTANCE, "Transmittance"),
+            (AOV_INSCATTERING, "Inscattering"),
+            (AOV_COVERAGE, "Coverage"),
+        ):
+            source = layer_node.outputs.get(aov_name)
+            if source is None:
+                missing.append(aov_name)
+            else:
+                tree.links.new(source, combine.inputs[socket_name])
+        if missing:
+            messages.append(
+                f"Render Layers node '{layer_node.name}' has no output {', '.join(missing)}: "
+                "switch the render engine to Cycles or Eevee and press Refresh"
+            )
+        for target in targets:
+            tree.links.new(combine.outputs["Image"], target)
+    scene.render.use_compositing = True
+    scene[STATE_KEY] = state
+    return messages
+
+
+def _installed_nodes(scene) -> list:
+    tree = _current_tree(scene)
+    if tree is None:
+        return []
+    return [node for node in tree.nodes if node.get(TAG) and node.name.startswith(COMPOSITE_NODE)]
+
+
+def _current_tree(scene):
+    if GROUP_API:
+        return scene.compositing_node_group
+    return scene.node_tree
+
+
+def uninstall(scene) -> None:
+    """Undo :func:`install`: relink, remove our nodes, AOVs and tree, restore the scene's switches."""
+    state = scene[STATE_KEY].to_dict() if STATE_KEY in scene else {}
+    tree = _current_tree(scene)
+    if tree is not None:
+        for node in [n for n in tree.nodes if n.get(TAG) and n.name.startswith(COMPOSITE_NODE)]:
+            image_in = node.inputs["Image"]
+            source = image_in.links[0].from_socket if image_in.is_linked else None
+            targets = [link.to_socket for link in node.outputs["Image"].links]
+            tree.nodes.remove(node)
+            if source is not None and not source.node.get(TAG):
+                for target in targets:
+                    if not target.node.get(TAG):
+                        tree.links.new(source, target)
+        for node in [n for n in tree.nodes if n.get(TAG)]:
+            tree.nodes.remove(node)
+        if GROUP_API:
+            if state.get("added_output_socket"):
+                for item in list(tree.interface.items_tree):
+                    if item.item_type == "SOCKET" and item.in_out == "OUTPUT":
+                        tree.interface.remove(item)
+                        break
+            if tree.get(TAG) and not state.get("had_group", True):
+                scene.compositing_node_group = None
+                if not len(tree.nodes) and tree.users == 0:
+                    bpy.data.node_groups.remove(tree)
+    if not GROUP_API and "use_nodes" in state:
+        scene.use_nodes = bool(state["use_nodes"])
+    remove_aovs(scene, state)
+    if "use_compositing" in state:
+        scene.render.use_compositing = bool(state["use_compositing"])
+    if STATE_KEY in scene:
+        del scene[STATE_KEY]
+    group = bpy.data.node_groups.get(GROUP_NAME)
+    if group is not None and group.users == 0:
+        bpy.data.node_groups.remove(group)

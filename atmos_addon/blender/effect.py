@@ -1,0 +1,130 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Turn aerial perspective on, off, or refresh it for a scene: the code the operators, CLI and API share.
+
+Enabling builds (or reuses) the aerial perspective shader group, injects its AOV outputs into
+every material the scene's objects use (:mod:`.materials`), declares the AOVs and inserts the
+combining node into the compositor (:mod:`.compositor`), and writes the shader parameters
+(:mod:`.sync`). Disabling removes exactly what enabling added. Both are idempotent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import bpy
+
+from . import compositor, materials, sync
+
+_applying: set[str] = set()
+
+
+@dataclass
+class Report:
+    """What an enable/refresh did: managed materials, skipped ones with the reason, and messages."""
+
+    managed: list[str] = field(default_factory=list)
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+    objects_without_material: list[str] = field(default_factory=list)
+    messages: list[str] = field(default_factory=list)
+
+
+def _set_enabled(scene, value: bool) -> None:
+    """Set ``scene.atmos.enabled`` without re-entering its update callback."""
+    if scene.atmos.enabled != value:
+        _applying.add(scene.name)
+        try:
+            scene.atmos.enabled = value
+        finally:
+            _applying.discard(scene.name)
+
+
+def apply_enabled_state(scene) -> None:
+    """The ``enabled`` update callback: enable or disable to match the switch."""
+    if scene.name in _applying:
+        return
+    if scene.atmos.enabled:
+        enable_effect(scene)
+    else:
+        disable_effect(scene)
+
+
+def _status(scene, report: Report) -> None:
+    settings = scene.atmos
+    settings.status_materials = f"{len(report.managed)} material(s) with aerial perspective"
+    settings.status_objects = (
+        f"{len(report.objects_without_material)} object(s) without material: not affected"
+        if report.objects_without_material else ""
+    )
+    settings.skipped_materials.clear()
+    for name, reason in report.skipped:
+        item = settings.skipped_materials.add()
+        item.name = name
+        item.reason = reason
+
+
+def _apply_materials(scene, *, only_new: bool) -> Report:
+    group = sync.ensure_group(scene)
+    result = materials.inject_scene(scene, group, only_new=only_new)
+    report = Report(
+        managed=result.managed,
+        skipped=result.skipped,
+        objects_without_material=result.objects_without_material,
+    )
+    report.messages.append(f"{len(result.managed)} material(s) with aerial perspective")
+    for name, reason in result.skipped:
+        report.messages.append(f"Material '{name}' skipped: {reason}")
+    if result.objects_without_material:
+        report.messages.append(
+            f"{len(result.objects_without_material)} object(s) without material are not affected "
+            "(give them a material to include them)"
+        )
+    return report
+
+
+def enable_effect(scene) -> Report:
+    """Apply aerial perspective to every object of ``scene`` (idempotent)."""
+    _set_enabled(scene, True)
+    report = _apply_materials(scene, only_new=True)
+    report.messages.extend(compositor.install(scene))
+    sync.sync_scene(scene)
+    report.messages.append(scene.atmos.status_sun)
+    _status(scene, report)
+    sync._last_counts[scene.name] = (len(bpy.data.materials), len(scene.objects))
+    return report
+
+
+def refresh_effect(scene) -> Report:
+    """Pick up materials and objects added since enabling, and re-sync (enables when off)."""
+    return enable_effect(scene)
+
+
+def pick_up_new_materials(scene) -> None:
+    """Inject materials that appeared since the last pass (the depsgraph handler's cheap path)."""
+    report = _apply_materials(scene, only_new=True)
+    _status(scene, report)
+
+
+def _materials_used_by_other_enabled_scenes(scene) -> set[int]:
+    keep: set[int] = set()
+    for other in bpy.data.scenes:
+        if other != scene and getattr(other, "atmos", None) is not None and other.atmos.enabled:
+            keep.update(m.as_pointer() for m in materials.scene_materials(other)[0])
+    return keep
+
+
+def disable_effect(scene) -> list[str]:
+    """Remove everything :func:`enable_effect` added to ``scene``; the names of the stripped materials."""
+    _set_enabled(scene, False)
+    keep = _materials_used_by_other_enabled_scenes(scene)
+    candidates = [m for m in bpy.data.materials if m.as_pointer() not in keep]
+    stripped = materials.remove_all(candidates)
+    materials.remove_surface_group()
+    compositor.uninstall(scene)
+    sync.node_groups().parameters.clear_shader_parameters(scene)
+    settings = scene.atmos
+    settings.status_materials = ""
+    settings.status_objects = ""
+    settings.status_sun = ""
+    settings.skipped_materials.clear()
+    sync.forget(scene.name)
+    return stripped

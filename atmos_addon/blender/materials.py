@@ -1,0 +1,321 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Injection of the aerial perspective AOVs into the materials of a scene, and their removal.
+
+Each managed material gets one node beside the user's nodes: a group node (label "Atmos Surface
+AOVs", custom property ``atmos_tag``) instancing the shared group "Atmos Surface AOVs", which holds
+
+- the "Atmos Aerial Perspective" group (outputs Transmittance and Inscattering),
+- AOV Outputs ``atmos_transmittance`` and ``atmos_inscattering`` (colour) and ``atmos_coverage``
+  (value), each weighted by the surface's opacity alpha = Opacity * (1 - Transparency).
+
+Where the surface has an alpha path (Principled BSDF Alpha, or a Mix Shader with a Transparent BSDF
+on one side) that socket is linked to the group's Opacity (or Transparency) input. Weighting by
+opacity keeps a cut-out (a leaf card) from writing the atmosphere of its own distance where it is
+transparent: Cycles writes AOVs at every surface a camera ray passes until one with alpha >= the
+view layer's alpha threshold (0.5), adding them up, so a fully transparent texel writes 0 and the
+surface behind writes its own values; Eevee's dithered transparency discards those samples.
+The compositor (:mod:`.compositor`) reads the coverage to leave sky pixels untouched and to
+normalise pixels where more than one surface wrote.
+
+One node per material (not six) because every node edit in a material whose tree holds AOV outputs
+makes Blender re-check all materials (cost grows with the file); for the same reason a large pass
+edits materials against an empty stand-in group and swaps the real group in with one remap. The node keeps
+Blender's default name ("Group"): renaming a node fixes animation paths across the whole file and
+would be the slowest step; it is found by its tag. Removal deletes exactly the tagged nodes (and
+with them their links), so the user's node set and links come back unchanged.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import bpy
+
+TAG = "atmos_tag"
+PREFIX = "Atmos "
+AOV_TRANSMITTANCE = "atmos_transmittance"
+AOV_INSCATTERING = "atmos_inscattering"
+AOV_COVERAGE = "atmos_coverage"
+
+#: The one group node each managed material gets, and the group it instances.
+SURFACE_GROUP = "Atmos Surface AOVs"
+SURFACE_GROUP_VERSION = 1
+VERSION_KEY = "atmos_version"
+NODE_LABEL = "Atmos Surface AOVs"
+#: Above this many materials per pass, the surface group is emptied while materials are edited (see inject_scene).
+BULK_THRESHOLD = 16
+
+#: Object types that render surfaces with materials.
+GEOMETRY_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"})
+
+
+@dataclass
+class MaterialReport:
+    """What an injection pass did: managed materials, skipped ones and why, objects without materials."""
+
+    managed: list[str] = field(default_factory=list)
+    injected: list[str] = field(default_factory=list)
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+    objects_without_material: list[str] = field(default_factory=list)
+
+
+def _uses_nodes(material) -> bool:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return bool(material.use_nodes) and material.node_tree is not None
+
+
+def _is_editable(material) -> bool:
+    if material.library is not None:
+        return False
+    return bool(getattr(material, "is_editable", True))
+
+
+def scene_materials(scene) -> tuple[list, list[str]]:
+    """The distinct materials used by the scene's objects (first-seen order) and the objects without one."""
+    seen: dict[int, object] = {}
+    bare: list[str] = []
+    for obj in scene.objects:
+        if obj.type not in GEOMETRY_TYPES:
+            continue
+        found = False
+        for slot in obj.material_slots:
+            material = slot.material
+            if material is None:
+                continue
+            found = True
+            key = material.as_pointer()
+            if key not in seen:
+                seen[key] = material
+        if not found:
+            bare.append(obj.name)
+    return list(seen.values()), bare
+
+
+def atmos_nodes(material) -> list:
+    """The Atmos-tagged nodes of a material."""
+    tree = material.node_tree
+    return [] if tree is None else [node for node in tree.nodes if node.get(TAG)]
+
+
+def is_injected(material) -> bool:
+    """True when the material carries the Atmos surface group node."""
+    return any(node.bl_idname == "ShaderNodeGroup" for node in atmos_nodes(material))
+
+
+def skip_reason(material) -> str | None:
+    """Why the material cannot be managed, or None."""
+    if not _is_editable(material):
+        where = material.library.filepath if material.library is not None else "a library override"
+        return f"linked from {where} (not editable): make it local to include it"
+    if not _uses_nodes(material):
+        return "does not use nodes: enable 'Use Nodes' to include it"
+    return None
+
+
+def _active_output(tree):
+    best = None
+    for node in tree.nodes:
+        if node.bl_idname == "ShaderNodeOutputMaterial" and node.is_active_output:
+            if node.target == "ALL":
+                return node
+            best = best or node
+    return best
+
+
+def _opacity(tree):
+    """The surface's opacity as ``(socket, None)``, ``(None, constant)``, or ``(None, None)`` when opaque.
+
+    Found for a Principled BSDF (its Alpha input) or a Mix Shader with a Transparent BSDF on one
+    side (its factor, or one minus it) feeding the active Material Output.
+    """
+    output = _active_output(tree)
+    if output is None or not output.inputs["Surface"].is_linked:
+        return None, None, False
+    shader = output.inputs["Surface"].links[0].from_node
+    if shader.bl_idname == "ShaderNodeBsdfPrincipled":
+        alpha = shader.inputs["Alpha"]
+        if alpha.is_linked:
+            return alpha.links[0].from_socket, None, False
+        return (None, float(alpha.default_value), False) if alpha.default_value < 1.0 else (None, None, False)
+    if shader.bl_idname == "ShaderNodeMixShader":
+        factor = shader.inputs[0]
+        for index, invert in ((1, False), (2, True)):
+            sock = shader.inputs[index]
+            if sock.is_linked and sock.links[0].from_node.bl_idname == "ShaderNodeBsdfTransparent":
+                # Mix = (1 - f) * A + f * B: opacity is f when A is transparent, 1 - f when B is.
+                if factor.is_linked:
+                    return factor.links[0].from_socket, None, invert
+                value = float(factor.default_value)
+                return None, (1.0 - value if invert else value), False
+    return None, None, False
+
+
+def _surface_group_interface(tree) -> None:
+    tree.interface.clear()
+    opacity = tree.interface.new_socket("Opacity", in_out="INPUT", socket_type="NodeSocketFloat")
+    opacity.default_value, opacity.min_value, opacity.max_value = 1.0, 0.0, 1.0
+    transparency = tree.interface.new_socket("Transparency", in_out="INPUT", socket_type="NodeSocketFloat")
+    transparency.default_value, transparency.min_value, transparency.max_value = 0.0, 0.0, 1.0
+
+
+def _populate_surface_group(tree, aerial_group) -> None:
+    """Aerial group -> opacity weights -> AOV outputs; alpha = Opacity * (1 - Transparency)."""
+    nodes, links = tree.nodes, tree.links
+    nodes.clear()
+    group_in = nodes.new("NodeGroupInput")
+    group_in.location = (-500, -250)
+    aerial = nodes.new("ShaderNodeGroup")
+    aerial.node_tree = aerial_group
+    aerial.location = (-500, 0)
+    one_minus = nodes.new("ShaderNodeMath")
+    one_minus.operation = "SUBTRACT"
+    one_minus.inputs[0].default_value = 1.0
+    one_minus.location = (-250, -300)
+    links.new(group_in.outputs["Transparency"], one_minus.inputs[1])
+    alpha = nodes.new("ShaderNodeMath")
+    alpha.operation = "MULTIPLY"
+    alpha.use_clamp = True
+    alpha.location = (-50, -250)
+    links.new(group_in.outputs["Opacity"], alpha.inputs[0])
+    links.new(one_minus.outputs[0], alpha.inputs[1])
+    for index, (output, aov_name) in enumerate(
+        (("Transmittance", AOV_TRANSMITTANCE), ("Inscattering", AOV_INSCATTERING))
+    ):
+        scale = nodes.new("ShaderNodeVectorMath")
+        scale.operation = "SCALE"
+        scale.location = (150, -180.0 * index)
+        links.new(aerial.outputs[output], scale.inputs[0])
+        links.new(alpha.outputs[0], scale.inputs["Scale"])
+        aov = nodes.new("ShaderNodeOutputAOV")
+        aov.aov_name = aov_name
+        aov.location = (400, -180.0 * index)
+        links.new(scale.outputs[0], aov.inputs["Color"])
+    coverage = nodes.new("ShaderNodeOutputAOV")
+    coverage.aov_name = AOV_COVERAGE
+    coverage.location = (400, -400)
+    links.new(alpha.outputs[0], coverage.inputs["Value"])
+    tree[VERSION_KEY] = SURFACE_GROUP_VERSION
+
+
+def _is_populated(tree, aerial_group) -> bool:
+    return (
+        tree.get(VERSION_KEY) == SURFACE_GROUP_VERSION
+        and any(n.bl_idname == "ShaderNodeGroup" and n.node_tree == aerial_group for n in tree.nodes)
+    )
+
+
+def ensure_surface_group(aerial_group):
+    """Get or create the "Atmos Surface AOVs" shader group around ``aerial_group`` (rebuilt in place when stale)."""
+    tree = bpy.data.node_groups.get(SURFACE_GROUP)
+    if tree is not None and tree.bl_idname != "ShaderNodeTree":
+        tree.name = SURFACE_GROUP + " (not Atmos)"
+        tree = None
+    if tree is None:
+        tree = bpy.data.node_groups.new(SURFACE_GROUP, "ShaderNodeTree")
+    if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
+        _surface_group_interface(tree)
+    if not _is_populated(tree, aerial_group):
+        _populate_surface_group(tree, aerial_group)
+    return tree
+
+
+def _stand_in():
+    """An empty group with the surface group's interface, used by nothing yet.
+
+    Every node edit in a material (or group) that holds AOV outputs makes Blender re-check all the
+    materials in the file, so bulk edits point the materials at this empty stand-in and swap the
+    real group in (or out) with one ``user_remap``.
+    """
+    tree = bpy.data.node_groups.new(SURFACE_GROUP + " (stand-in)", "ShaderNodeTree")
+    _surface_group_interface(tree)
+    return tree
+
+
+def inject(material, surface_group) -> None:
+    """Add the Atmos surface group node to one node-based, editable material (idempotent).
+
+    The node sits to the right of the user's nodes; where the surface has an alpha path its opacity
+    (or transparency) socket is also linked to the group -- a new link from a user output, never a
+    change to the user's links or values.
+    """
+    for node in atmos_nodes(material):
+        material.node_tree.nodes.remove(node)
+    tree = material.node_tree
+    nodes = tree.nodes
+    x = y = 0.0
+    if len(nodes):
+        x = max(node.location.x + node.width for node in nodes) + 200.0
+        y = max(node.location.y for node in nodes)
+    opacity_socket, opacity_value, invert = _opacity(tree)
+    node = nodes.new("ShaderNodeGroup")
+    node.location = (x, y)
+    node.label = NODE_LABEL
+    node[TAG] = 1
+    node.node_tree = surface_group
+    target = node.inputs["Transparency" if invert else "Opacity"]
+    if opacity_socket is not None:
+        tree.links.new(opacity_socket, target)
+    elif opacity_value is not None:
+        target.default_value = opacity_value
+
+
+def remove(material) -> bool:
+    """Delete exactly the Atmos-tagged nodes of ``material`` (and with them their links); True if any."""
+    tagged = atmos_nodes(material)
+    for node in tagged:
+        material.node_tree.nodes.remove(node)
+    return bool(tagged)
+
+
+def inject_scene(scene, aerial_group, *, only_new: bool = False) -> MaterialReport:
+    """Inject every material used by the scene's objects, each once; report the skipped ones and why."""
+    report = MaterialReport()
+    materials, report.objects_without_material = scene_materials(scene)
+    todo = []
+    for material in materials:
+        reason = skip_reason(material)
+        if reason is not None:
+            report.skipped.append((material.name, reason))
+            continue
+        report.managed.append(material.name)
+        if not (only_new and is_injected(material)):
+            todo.append(material)
+    surface_group = ensure_surface_group(aerial_group)
+    target = _stand_in() if len(todo) > BULK_THRESHOLD else surface_group
+    for material in todo:
+        inject(material, target)
+        report.injected.append(material.name)
+    if target is not surface_group:
+        target.user_remap(surface_group)
+        bpy.data.node_groups.remove(target)
+    return report
+
+
+def remove_all(materials) -> list[str]:
+    """Strip the Atmos nodes from ``materials``; the names of those that had them.
+
+    With many materials the shared group is swapped for an empty stand-in first (see :func:`_stand_in`).
+    """
+    surface_group = bpy.data.node_groups.get(SURFACE_GROUP)
+    stand_in = None
+    if surface_group is not None and len(materials) > BULK_THRESHOLD and surface_group.users:
+        stand_in = _stand_in()
+        surface_group.user_remap(stand_in)
+    stripped = []
+    for material in materials:
+        if material.library is None and material.node_tree is not None and remove(material):
+            stripped.append(material.name)
+    if stand_in is not None:
+        if stand_in.users:  # materials outside this pass keep the real group
+            stand_in.user_remap(surface_group)
+        bpy.data.node_groups.remove(stand_in)
+    return stripped
+
+
+def remove_surface_group() -> None:
+    """Delete the surface group once no material uses it."""
+    tree = bpy.data.node_groups.get(SURFACE_GROUP)
+    if tree is not None and tree.users == 0:
+        bpy.data.node_groups.remove(tree)

@@ -1,0 +1,175 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The scene settings of Atmos: one PropertyGroup on ``bpy.types.Scene.atmos``.
+
+Scattering coefficients are stored in 1/km so the interface shows readable numbers
+(clear air scatters about 0.006/km of red light); :func:`.sync.atmosphere_from_settings`
+converts them to the 1/m the physics core uses. Every ``update=`` callback edits shader
+parameter values only (a scene custom-property write); the node group is rebuilt only when
+the feature set (Mie on/off, absorption on/off) changes.
+"""
+
+from __future__ import annotations
+
+import bpy
+from bpy.props import (
+    BoolProperty,
+    CollectionProperty,
+    FloatProperty,
+    FloatVectorProperty,
+    PointerProperty,
+    StringProperty,
+)
+
+from ..physics import Atmosphere
+
+_CLEAR = Atmosphere()
+
+
+def _per_km(values_per_m) -> tuple[float, float, float]:
+    return tuple(float(v) * 1000.0 for v in values_per_m)
+
+
+def _on_enabled(self, context) -> None:
+    from . import effect
+
+    effect.apply_enabled_state(self.id_data)
+
+
+def _on_parameter(self, context) -> None:
+    scene = self.id_data
+    if self.enabled:
+        from . import sync
+
+        sync.sync_scene(scene)
+
+
+def _poll_sun(self, obj) -> bool:
+    return obj.type == "LIGHT" and obj.data.type == "SUN"
+
+
+class AtmosSkippedItem(bpy.types.PropertyGroup):
+    """A data-block Atmos left alone, and why (shown in the panel)."""
+
+    reason: StringProperty(name="Reason", description="Why Atmos did not change this data-block")
+
+
+class AtmosSceneSettings(bpy.types.PropertyGroup):
+    """Aerial perspective settings of one scene."""
+
+    enabled: BoolProperty(
+        name="Aerial Perspective",
+        description=(
+            "Apply aerial perspective to every object: materials write transmittance and in-scattered light "
+            "to render passes and the compositor combines them with the image"
+        ),
+        default=False,
+        update=_on_enabled,
+    )
+    rayleigh_scattering_per_km: FloatVectorProperty(
+        name="Rayleigh Scattering (1/km)",
+        description=(
+            "Scattering coefficient of air molecules at sea level for red, green, blue, per kilometre. "
+            "Molecules scatter blue far more than red (1/wavelength^4): distant objects turn blue"
+        ),
+        size=3,
+        default=_per_km(_CLEAR.rayleigh_scattering),
+        min=0.0,
+        soft_max=0.1,
+        precision=5,
+        step=0.01,
+        update=_on_parameter,
+    )
+    mie_scattering_per_km: FloatVectorProperty(
+        name="Mie Scattering (1/km)",
+        description=(
+            "Scattering coefficient of haze and aerosol particles at sea level, per kilometre. "
+            "Larger values make the distance hazier and greyer, with a bright glow around the sun"
+        ),
+        size=3,
+        default=_per_km(_CLEAR.mie_scattering),
+        min=0.0,
+        soft_max=1.0,
+        precision=5,
+        step=0.01,
+        update=_on_parameter,
+    )
+    mie_absorption_per_km: FloatVectorProperty(
+        name="Mie Absorption (1/km)",
+        description=(
+            "Absorption coefficient of aerosols (soot, dust) per kilometre: light removed without being "
+            "scattered, so distant objects darken instead of brightening"
+        ),
+        size=3,
+        default=_per_km(_CLEAR.mie_absorption),
+        min=0.0,
+        soft_max=1.0,
+        precision=5,
+        step=0.01,
+        update=_on_parameter,
+    )
+    mie_g: FloatProperty(
+        name="Mie Anisotropy",
+        description=(
+            "Henyey-Greenstein asymmetry of haze scattering: positive values scatter forward "
+            "(a bright halo when looking towards the sun), 0 scatters equally in all directions"
+        ),
+        default=float(_CLEAR.mie_g[0]),
+        min=-0.999,
+        max=0.999,
+        update=_on_parameter,
+    )
+    rayleigh_scale_height: FloatProperty(
+        name="Rayleigh Scale Height",
+        description="Height over which the density of air molecules falls by a factor e (metres)",
+        default=float(_CLEAR.rayleigh_scale_height),
+        min=1.0,
+        soft_max=20000.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+        update=_on_parameter,
+    )
+    mie_scale_height: FloatProperty(
+        name="Mie Scale Height",
+        description="Height over which the density of haze falls by a factor e (metres); haze stays low",
+        default=float(_CLEAR.mie_scale_height),
+        min=1.0,
+        soft_max=10000.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+        update=_on_parameter,
+    )
+    distance_scale: FloatProperty(
+        name="Distance Scale",
+        description=(
+            "Multiplies scene distances before the atmosphere sees them: 10 makes a 1 km model look "
+            "like a 10 km landscape"
+        ),
+        default=1.0,
+        min=1e-6,
+        soft_min=0.01,
+        soft_max=1000.0,
+        update=_on_parameter,
+    )
+    sun_object: PointerProperty(
+        name="Sun",
+        description="The sun lamp whose direction lights the atmosphere (empty: the first sun lamp in the scene)",
+        type=bpy.types.Object,
+        poll=_poll_sun,
+        update=_on_parameter,
+    )
+    status_built: StringProperty(name="Built", description="What the aerial perspective node group computes")
+    status_sun: StringProperty(name="Sun", description="Where the sun direction comes from")
+    status_materials: StringProperty(name="Materials", description="How many materials Atmos manages")
+    status_objects: StringProperty(name="Objects", description="Objects Atmos cannot affect")
+    skipped_materials: CollectionProperty(type=AtmosSkippedItem)
+
+    @classmethod
+    def register(cls) -> None:
+        bpy.types.Scene.atmos = PointerProperty(type=cls, name="Atmos", description="Atmos aerial perspective")
+
+    @classmethod
+    def unregister(cls) -> None:
+        del bpy.types.Scene.atmos
+
+
+CLASSES = (AtmosSkippedItem, AtmosSceneSettings)

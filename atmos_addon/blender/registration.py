@@ -1,0 +1,22 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Register the Blender layer: one classes tuple in order, unregistered in reverse, plus the handlers."""
+
+from __future__ import annotations
+
+import bpy
+
+from . import operators, properties, sync, ui_panel
+
+CLASSES = (*properties.CLASSES, *operators.CLASSES, *ui_panel.CLASSES)
+
+
+def register() -> None:
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+    sync.add_handlers()
+
+
+def unregister() -> None:
+    sync.remove_handlers()
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,196 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Scene settings -> shader parameter values, and the handlers that keep them current.
+
+Syncing writes values only (scene custom properties read by the shader); it never rebuilds a
+node tree unless the feature set changed, so it is cheap enough for every ``update=`` callback
+and for a depsgraph handler that follows the sun lamp.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import bpy
+import numpy as np
+from bpy.app.handlers import persistent
+from mathutils import Vector
+
+from .. import import_sibling
+from ..physics import Atmosphere, sun_irradiance_ground
+
+#: Used when the scene has no sun lamp: 45 degrees above the horizon, towards +Y (north in Blender's convention).
+DEFAULT_SUN_DIRECTION = (0.0, math.sqrt(0.5), math.sqrt(0.5))
+
+#: Last synced state per scene (a cache only; nothing here is needed to restore a file).
+_last_sun_matrix: dict[str, tuple] = {}
+_last_counts: dict[str, tuple[int, int]] = {}
+
+
+def node_groups():
+    """The extension's ``node_groups`` package (imported on first use)."""
+    return import_sibling("node_groups")
+
+
+def atmosphere_from_settings(settings) -> Atmosphere:
+    """The physics :class:`Atmosphere` for ``scene.atmos`` (coefficients 1/km -> 1/m)."""
+    return dataclasses.replace(
+        Atmosphere(),
+        rayleigh_scattering=np.asarray(settings.rayleigh_scattering_per_km, dtype=float) / 1000.0,
+        mie_scattering=np.asarray(settings.mie_scattering_per_km, dtype=float) / 1000.0,
+        mie_absorption=np.asarray(settings.mie_absorption_per_km, dtype=float) / 1000.0,
+        mie_g=np.full(3, float(settings.mie_g)),
+        rayleigh_scale_height=float(settings.rayleigh_scale_height),
+        mie_scale_height=float(settings.mie_scale_height),
+    )
+
+
+def features_from_settings(settings):
+    """The node-group feature set the settings need (Mie and absorption terms only when non-zero)."""
+    aerial = node_groups().aerial_perspective
+    return aerial.AerialFeatures(
+        mie=any(v > 0.0 for v in settings.mie_scattering_per_km),
+        absorption=any(v > 0.0 for v in settings.mie_absorption_per_km),
+    )
+
+
+def sun_object(scene):
+    """The sun lamp that drives the atmosphere: ``scene.atmos.sun_object``, else the first sun lamp in the scene."""
+    chosen = scene.atmos.sun_object
+    if chosen is not None and chosen.type == "LIGHT" and chosen.data.type == "SUN":
+        return chosen
+    for obj in scene.objects:
+        if obj.type == "LIGHT" and obj.data.type == "SUN":
+            return obj
+    return None
+
+
+def sun_direction(scene) -> tuple[np.ndarray, str]:
+    """Unit direction TO the sun in world space, and a sentence saying where it came from.
+
+    A sun lamp shines along its local -Z axis, so the direction towards the sun is its local +Z
+    axis in world space.
+    """
+    lamp = sun_object(scene)
+    if lamp is None:
+        return np.array(DEFAULT_SUN_DIRECTION), "No sun lamp: using the default sun 45 degrees above the horizon"
+    axis = lamp.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0))
+    if axis.length == 0.0:
+        return np.array(DEFAULT_SUN_DIRECTION), f"Sun lamp '{lamp.name}' has zero scale: using the default sun"
+    axis.normalize()
+    elevation = math.degrees(math.asin(max(-1.0, min(1.0, axis.z))))
+    return np.array(axis), f"Sun: '{lamp.name}', {elevation:.1f} degrees above the horizon"
+
+
+def metres_per_unit(scene) -> float:
+    """Metres per Blender unit as the atmosphere sees them (unit scale times the distance scale)."""
+    return float(scene.unit_settings.scale_length) * float(scene.atmos.distance_scale)
+
+
+def _set_if_changed(settings, name: str, value: str) -> None:
+    if getattr(settings, name) != value:
+        setattr(settings, name, value)
+
+
+def ensure_group(scene):
+    """Get or (re)build the aerial perspective shader group for the scene's feature set."""
+    aerial = node_groups().aerial_perspective
+    features = features_from_settings(scene.atmos)
+    group = aerial.ensure_aerial_perspective_group(features)
+    _set_if_changed(scene.atmos, "status_built", aerial.describe_features(features))
+    return group
+
+
+def sync_scene(scene) -> None:
+    """Write the shader parameters of ``scene`` from its settings and sun lamp (values only).
+
+    E_sun at the ground follows the sun's elevation through the transmittance of the whole air
+    column (:func:`sun_irradiance_ground`); the shader multiplies its unit-sun in-scattering by it.
+    """
+    settings = scene.atmos
+    atmosphere = atmosphere_from_settings(settings)
+    direction, sun_status = sun_direction(scene)
+    elevation_rad = math.asin(float(np.clip(direction[2], -1.0, 1.0)))
+    irradiance = np.asarray(sun_irradiance_ground(elevation_rad, atmosphere), dtype=float)
+    if settings.enabled:
+        ensure_group(scene)  # cheap when current; rebuilds in place when the feature set changed
+    node_groups().parameters.write_shader_parameters(
+        scene,
+        beta_rayleigh=atmosphere.rayleigh_scattering,
+        beta_mie=atmosphere.mie_scattering,
+        beta_mie_absorption=atmosphere.mie_absorption,
+        mie_g=float(settings.mie_g),
+        sun_direction=direction,
+        sun_irradiance=irradiance,
+        metres_per_unit=metres_per_unit(scene),
+    )
+    _set_if_changed(settings, "status_sun", sun_status)
+    lamp = sun_object(scene)
+    _last_sun_matrix[scene.name] = _matrix_key(lamp)
+
+
+def _matrix_key(lamp) -> tuple:
+    if lamp is None:
+        return ()
+    return (lamp.name, *(tuple(row) for row in lamp.matrix_world))
+
+
+def forget(scene_name: str | None = None) -> None:
+    """Drop the cached sync state (all scenes when ``scene_name`` is None)."""
+    if scene_name is None:
+        _last_sun_matrix.clear()
+        _last_counts.clear()
+    else:
+        _last_sun_matrix.pop(scene_name, None)
+        _last_counts.pop(scene_name, None)
+
+
+@persistent
+def on_depsgraph_update(scene, depsgraph) -> None:
+    """Follow the sun lamp and pick up new materials in scenes with the effect on (cheap checks first)."""
+    settings = getattr(scene, "atmos", None)
+    if settings is None or not settings.enabled:
+        return
+    if _matrix_key(sun_object(scene)) != _last_sun_matrix.get(scene.name):
+        sync_scene(scene)
+    counts = (len(bpy.data.materials), len(scene.objects))
+    if _last_counts.get(scene.name) != counts:
+        _last_counts[scene.name] = counts
+        from . import effect
+
+        effect.pick_up_new_materials(scene)
+
+
+@persistent
+def on_load_post(*_args) -> None:
+    """After a file loads: rebuild stale node groups and re-sync every scene with the effect on."""
+    forget()
+    for scene in bpy.data.scenes:
+        settings = getattr(scene, "atmos", None)
+        if settings is not None and settings.enabled:
+            sync_scene(scene)
+            _last_counts[scene.name] = (len(bpy.data.materials), len(scene.objects))
+
+
+HANDLERS = (
+    (bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
+    (bpy.app.handlers.load_post, on_load_post),
+)
+
+
+def add_handlers() -> None:
+    for handler_list, function in HANDLERS:
+        if function not in handler_list:
+            handler_list.append(function)
+
+
+def remove_handlers() -> None:
+    """Remove our handlers, also copies left by an earlier import of this module (add-on reload)."""
+    for handler_list, function in HANDLERS:
+        for registered in list(handler_list):
+            if registered is function or (
+                getattr(registered, "__module__", None) == function.__module__
+                and getattr(registered, "__qualname__", None) == function.__qualname__
+            ):
+                handler_list.remove(registered)
+    forget()

@@ -1,0 +1,442 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Aerial perspective applied to a scene: material injection, compositor insertion, and render parity.
+
+Render tests use tiny images (32 x 16 px) of emissive planes whose radiance L0 is known, so the
+composited pixel must equal L0 F_ex + L_in from :mod:`atmos_addon.physics` (Hoffman & Preetham
+2002, eq. 16). Cycles is held to 0.2 %, Eevee to 1 %.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Vector
+
+import atmos_addon
+from atmos_addon.blender import compositor, effect, materials, sync
+from atmos_addon.physics import sun_irradiance_ground
+from atmos_addon.physics.aerial_perspective import extinction, inscattering
+
+IS_5 = bpy.app.version >= (5, 0, 0)
+EEVEE = "BLENDER_EEVEE" if IS_5 else "BLENDER_EEVEE_NEXT"
+WORLD_COLOUR = (0.05, 0.1, 0.2)
+WIDTH, HEIGHT, FOV = 32, 16, math.radians(20.0)
+
+
+@pytest.fixture(autouse=True)
+def addon():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    atmos_addon.register()
+    yield
+    atmos_addon.unregister()
+
+
+def _quiet(function, *args):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return function(*args)
+
+
+def _set_use_nodes(idblock, value: bool) -> None:
+    _quiet(setattr, idblock, "use_nodes", value)
+
+
+def snapshot(tree) -> tuple:
+    """Node names/types/values and links of a tree, for before/after comparisons."""
+    nodes = []
+    for node in tree.nodes:
+        values = tuple(
+            (s.identifier, tuple(s.default_value) if hasattr(s.default_value, "__len__") else s.default_value)
+            for s in node.inputs if hasattr(s, "default_value")
+        )
+        nodes.append((node.name, node.bl_idname, tuple(node.location), values))
+    links = sorted(
+        (l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier) for l in tree.links
+    )
+    return sorted(nodes), links
+
+
+def user_material(name: str = "User"):
+    """A material with a few user nodes: noise -> colour ramp -> principled, plus a loose math node."""
+    material = bpy.data.materials.new(name)
+    _set_use_nodes(material, True)
+    tree = material.node_tree
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    loose = tree.nodes.new("ShaderNodeMath")
+    loose.inputs[0].default_value = 0.25
+    tree.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    tree.links.new(ramp.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+    return material
+
+
+def mesh_object(name: str, *mats, half_size: float | None = None):
+    """A mesh object linked to the scene: a triangle, or a square of ``half_size`` in its XY plane."""
+    mesh = bpy.data.meshes.new(name)
+    if half_size is None:
+        mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    else:
+        h = half_size
+        mesh.from_pydata([(-h, -h, 0), (h, -h, 0), (h, h, 0), (-h, h, 0)], [], [(0, 1, 2, 3)])
+    for material in mats:
+        mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+# -- material injection ------------------------------------------------------------------------
+
+
+def test_enable_disable_restores_the_user_material_exactly() -> None:
+    material = user_material()
+    mesh_object("A", material)
+    before = snapshot(material.node_tree)
+    report = effect.enable_effect(bpy.context.scene)
+    assert report.managed == ["User"]
+    added = materials.atmos_nodes(material)
+    assert len(added) == 1 and added[0].node_tree.name == materials.SURFACE_GROUP
+    assert len(material.node_tree.nodes) == len(before[0]) + 1
+    aovs = {n.aov_name for n in added[0].node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"}
+    assert aovs == {"atmos_transmittance", "atmos_inscattering", "atmos_coverage"}
+    user_part = [n for n in snapshot(material.node_tree)[0] if n[0] != added[0].name]
+    assert user_part == before[0], "injection must not move or change the user's nodes"
+    effect.disable_effect(bpy.context.scene)
+    assert snapshot(material.node_tree) == before
+
+
+def test_shared_material_once_and_multiple_slots() -> None:
+    shared, second = user_material("Shared"), user_material("Second")
+    for index in range(5):
+        mesh_object(f"Obj{index}", shared)
+    mesh_object("TwoSlots", shared, second)
+    report = effect.enable_effect(bpy.context.scene)
+    assert sorted(report.managed) == ["Second", "Shared"]
+    for material in (shared, second):
+        groups = [n for n in material.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"]
+        assert len(groups) == 1
+
+
+def test_skipped_materials_and_bare_objects_are_reported(tmp_path: Path) -> None:
+    plain = bpy.data.materials.new("NoNodes")
+    _set_use_nodes(plain, False)
+    library_path = tmp_path / "library.blend"
+    linked_source = user_material("Linked")
+    bpy.data.libraries.write(str(library_path), {linked_source})
+    bpy.data.materials.remove(linked_source)
+    with bpy.data.libraries.load(str(library_path), link=True) as (data_from, data_to):
+        data_to.materials = ["Linked"]
+    linked = data_to.materials[0]
+    mesh_object("Plain", plain)
+    mesh_object("UsesLinked", linked)
+    mesh_object("Bare")
+    report = effect.enable_effect(bpy.context.scene)
+    reasons = dict(report.skipped)
+    uses_nodes = _quiet(getattr, plain, "use_nodes")  # Blender 5.0 materials always use nodes
+    assert uses_nodes or "use nodes" in reasons["NoNodes"].lower()
+    assert "linked" in reasons["Linked"]
+    assert report.objects_without_material == ["Bare"]
+    assert any("without material" in m for m in report.messages)
+    skipped = {"Linked"} if uses_nodes else {"NoNodes", "Linked"}
+    assert {item.name for item in bpy.context.scene.atmos.skipped_materials} == skipped
+    assert uses_nodes or not materials.is_injected(plain)
+
+
+def test_enable_disable_enable_is_idempotent() -> None:
+    material = user_material()
+    mesh_object("A", material)
+    scene = bpy.context.scene
+    effect.enable_effect(scene)
+    first = snapshot(material.node_tree), snapshot(compositor._current_tree(scene))
+    effect.enable_effect(scene)
+    assert (snapshot(material.node_tree), snapshot(compositor._current_tree(scene))) == first
+    effect.disable_effect(scene)
+    effect.enable_effect(scene)
+    assert snapshot(material.node_tree)[1] == first[0][1]
+    assert {n[0] for n in snapshot(material.node_tree)[0]} == {n[0] for n in first[0][0]}
+    assert [a.name for a in scene.view_layers[0].aovs] == ["atmos_transmittance", "atmos_inscattering",
+                                                          "atmos_coverage"]
+
+
+def test_material_added_after_enabling_is_picked_up() -> None:
+    scene = bpy.context.scene
+    mesh_object("A", user_material("First"))
+    effect.enable_effect(scene)
+    late = user_material("Late")
+    mesh_object("B", late)
+    bpy.context.view_layer.update()  # runs depsgraph_update_post
+    assert materials.is_injected(late)
+
+
+def test_sun_direction_follows_the_lamp() -> None:
+    scene = bpy.context.scene
+    direction, status = sync.sun_direction(scene)
+    assert direction[2] == pytest.approx(math.sqrt(0.5)) and "default" in status
+    lamp = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    scene.collection.objects.link(lamp)
+    lamp.rotation_euler = (math.radians(60.0), 0.0, 0.0)  # tilts local +Z towards -Y, 30 deg elevation
+    bpy.context.view_layer.update()
+    direction, status = sync.sun_direction(scene)
+    np.testing.assert_allclose(direction, (0.0, -math.sin(math.radians(60)), math.cos(math.radians(60))), atol=1e-6)
+    assert "'Sun'" in status
+
+
+# -- compositor --------------------------------------------------------------------------------
+
+
+def _user_compositor(scene):
+    """Render Layers -> Glare -> output, the user's own graph."""
+    if IS_5:
+        tree = bpy.data.node_groups.new("User Compositor", "CompositorNodeTree")
+        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        output = tree.nodes.new("NodeGroupOutput")
+        scene.compositing_node_group = tree
+    else:
+        scene.use_nodes = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        output = tree.nodes.new("CompositorNodeComposite")
+    layers = tree.nodes.new("CompositorNodeRLayers")
+    glare = tree.nodes.new("CompositorNodeGlare")
+    tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
+    tree.links.new(glare.outputs["Image"], output.inputs[0])
+    return tree
+
+
+def _compositor_state(scene) -> tuple:
+    if IS_5:
+        tree = scene.compositing_node_group
+        return (tree.name if tree else None, snapshot(tree) if tree else None, scene.render.use_compositing)
+    return (_quiet(getattr, scene, "use_nodes"), snapshot(scene.node_tree) if scene.node_tree else None,
+            scene.render.use_compositing)
+
+
+def test_user_compositor_is_kept_and_restored_exactly() -> None:
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    mesh_object("A", user_material())
+    tree = _user_compositor(scene)
+    before = _compositor_state(scene)
+    effect.enable_effect(scene)
+    glare = next(n for n in tree.nodes if n.bl_idname == "CompositorNodeGlare")
+    feeding = glare.inputs["Image"].links[0].from_node
+    assert feeding.name == compositor.COMPOSITE_NODE, "the Glare must now read the atmosphere-composited image"
+    effect.enable_effect(scene)
+    assert len([n for n in tree.nodes if n.name.startswith(compositor.COMPOSITE_NODE)]) == 1
+    effect.disable_effect(scene)
+    assert _compositor_state(scene) == before
+    assert len(scene.view_layers[0].aovs) == 0
+    assert compositor.STATE_KEY not in scene
+
+
+def test_missing_compositor_is_created_and_removed() -> None:
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    mesh_object("A", user_material())
+    before = _compositor_state(scene)
+    effect.enable_effect(scene)
+    tree = compositor._current_tree(scene)
+    assert tree is not None and compositor.COMPOSITE_NODE in tree.nodes
+    effect.disable_effect(scene)
+    after = _compositor_state(scene)
+    if IS_5:
+        assert after == before
+        assert compositor.CREATED_TREE_NAME not in bpy.data.node_groups
+    else:  # 4.2 keeps the (now empty) embedded tree that use_nodes created
+        assert after[0] == before[0] and after[2] == before[2] and after[1] in (None, ([], []))
+    assert compositor.GROUP_NAME not in bpy.data.node_groups
+
+
+# -- renders -----------------------------------------------------------------------------------
+
+
+def _pixel_direction(column: int, row: int) -> Vector:
+    """World direction of a pixel centre for the test camera (at the origin, looking along +Y, Z up)."""
+    half = math.tan(FOV / 2.0)
+    x = (column + 0.5 - WIDTH / 2.0) / (WIDTH / 2.0) * half
+    z = (row + 0.5 - HEIGHT / 2.0) / (WIDTH / 2.0) * half
+    return Vector((x, 1.0, z)).normalized()
+
+
+def _emissive_plane(name: str, radiance, distance: float, column: int, row: int):
+    material = bpy.data.materials.new(name)
+    _set_use_nodes(material, True)
+    tree = material.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    emission = tree.nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (*radiance, 1.0)
+    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    direction = _pixel_direction(column, row)
+    obj = mesh_object(name, material, half_size=distance * 3.0 * math.tan(FOV / 2.0) / (WIDTH / 2.0))  # ~3 px
+    obj.location = direction * distance
+    obj.rotation_euler = (-direction).to_track_quat("Z", "Y").to_euler()  # faces the camera
+    return obj
+
+
+def _render_scene(engine: str):
+    scene = bpy.context.scene
+    scene.render.engine = engine
+    scene.render.resolution_x, scene.render.resolution_y = WIDTH, HEIGHT
+    scene.render.resolution_percentage = 100
+    scene.view_settings.view_transform = "Standard"
+    scene.render.filter_size = 0.0
+    if engine == "CYCLES":
+        scene.cycles.samples = 4
+        scene.cycles.use_denoising = False
+        scene.cycles.device = "CPU"
+        scene.cycles.filter_width = 0.01  # sample the pixel centre, where the expected value is computed
+    else:
+        scene.eevee.taa_render_samples = 1
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    _set_use_nodes(world, True)
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD_COLOUR, 1.0)
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.data.angle = FOV
+    camera.data.clip_end = 100_000.0
+    camera.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    scene.collection.objects.link(sun)
+    return scene, sun
+
+
+PLANES = (  # name, L0, distance (m), pixel column, row
+    ("Near", (0.2, 0.5, 0.8), 300.0, 6, 8),
+    ("Middle", (0.6, 0.4, 0.3), 3000.0, 16, 8),
+    ("Far", (0.5, 0.5, 0.5), 20000.0, 26, 8),
+)
+SKY_PIXEL = (16, 1)
+
+
+def _render(scene, tmp_path: Path, name: str) -> np.ndarray:
+    settings = scene.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    path = tmp_path / f"{name}.exr"
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(str(path), check_existing=False)
+    pixels = np.array(image.pixels[:], dtype=float).reshape(HEIGHT, WIDTH, 4)[..., :3]
+    bpy.data.images.remove(image)
+    return pixels
+
+
+def _expected(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
+    atmosphere = sync.atmosphere_from_settings(scene.atmos)
+    sun_dir, _ = sync.sun_direction(scene)
+    e_sun = sun_irradiance_ground(math.asin(sun_dir[2]), atmosphere)
+    metres = distance * sync.metres_per_unit(scene)
+    mu = float(np.dot(np.array(_pixel_direction(column, row)), sun_dir))
+    return np.asarray(radiance) * extinction(metres, atmosphere) + inscattering(metres, mu, atmosphere, e_sun)
+
+
+def _show_pass(scene, socket_name: str | None) -> None:
+    """Route a Render Layers output (or, for None, our composite) to the final output."""
+    tree = compositor._current_tree(scene)
+    combine = tree.nodes[compositor.COMPOSITE_NODE]
+    output = next(n for n in tree.nodes if n.bl_idname in ("NodeGroupOutput", "CompositorNodeComposite"))
+    target = output.inputs[0]
+    layers = combine.inputs["Image"].links[0].from_node
+    source = combine.outputs["Image"] if socket_name is None else layers.outputs[socket_name]
+    tree.links.new(source, target)
+
+
+def _parity(engine: str, tolerance: float, tmp_path: Path) -> dict:
+    scene, sun = _render_scene(engine)
+    for name, radiance, distance, column, row in PLANES:
+        _emissive_plane(name, radiance, distance, column, row)
+    effect.enable_effect(scene)
+    aovs = {}
+    for label, rotation in (("high", (math.radians(30), 0, math.radians(40))), ("low", (math.radians(80), 0, 2.5))):
+        sun.rotation_euler = rotation
+        bpy.context.view_layer.update()  # the depsgraph handler re-syncs the sun
+        pixels = _render(scene, tmp_path, f"{engine}_{label}")
+        for name, radiance, distance, column, row in PLANES:
+            expected = _expected(scene, radiance, distance, column, row)
+            got = pixels[row, column]
+            print(f"parity {engine} sun={label} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
+            assert np.allclose(got, expected, rtol=tolerance, atol=0), (engine, label, name, got, expected)
+        np.testing.assert_allclose(pixels[SKY_PIXEL[1], SKY_PIXEL[0]], WORLD_COLOUR, rtol=2e-3)
+    for socket_name in ("atmos_transmittance", "atmos_inscattering"):
+        _show_pass(scene, socket_name)
+        pixels = _render(scene, tmp_path, f"{engine}_{socket_name}")
+        aovs[socket_name] = np.array([pixels[row, column] for *_, column, row in PLANES])
+    _show_pass(scene, None)
+    return aovs
+
+
+@pytest.fixture(scope="module")
+def aov_results() -> dict:
+    return {}
+
+
+def test_cycles_parity_with_the_physics(tmp_path: Path, aov_results: dict) -> None:
+    aov_results["CYCLES"] = _parity("CYCLES", 2e-3, tmp_path)
+
+
+def test_eevee_parity_with_the_physics(tmp_path: Path, aov_results: dict) -> None:
+    aov_results["EEVEE"] = _parity(EEVEE, 1e-2, tmp_path)
+    if "CYCLES" in aov_results:
+        for name in aov_results["CYCLES"]:
+            ratio = np.max(np.abs(aov_results["EEVEE"][name] / aov_results["CYCLES"][name] - 1))
+            print(f"engines {name}: max relative difference {ratio:.2e}")
+            np.testing.assert_allclose(aov_results["EEVEE"][name], aov_results["CYCLES"][name], rtol=1e-2)
+
+
+def _cutout_card(kind: str, distance: float, radiance: float):
+    """A card whose left half is fully transparent: Principled Alpha or Mix Shader with Transparent BSDF."""
+    material = bpy.data.materials.new(f"Card {kind}")
+    _set_use_nodes(material, True)
+    tree = material.node_tree
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    split = tree.nodes.new("ShaderNodeSeparateXYZ")
+    mask = tree.nodes.new("ShaderNodeMath")
+    mask.operation = "GREATER_THAN"
+    mask.inputs[1].default_value = 0.5
+    tree.links.new(coords.outputs["Generated"], split.inputs[0])
+    tree.links.new(split.outputs["X"], mask.inputs[0])
+    principled = tree.nodes["Principled BSDF"]
+    if kind == "mix":
+        tree.nodes.remove(principled)
+        emission = tree.nodes.new("ShaderNodeEmission")
+        emission.inputs["Color"].default_value = (radiance, radiance, radiance, 1.0)
+        transparent = tree.nodes.new("ShaderNodeBsdfTransparent")
+        mix = tree.nodes.new("ShaderNodeMixShader")
+        tree.links.new(mask.outputs[0], mix.inputs[0])
+        tree.links.new(transparent.outputs[0], mix.inputs[1])
+        tree.links.new(emission.outputs[0], mix.inputs[2])
+        tree.links.new(mix.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    else:
+        principled.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        principled.inputs["Specular IOR Level"].default_value = 0.0
+        principled.inputs["Emission Color"].default_value = (radiance, radiance, radiance, 1.0)
+        principled.inputs["Emission Strength"].default_value = 1.0
+        tree.links.new(mask.outputs[0], principled.inputs["Alpha"])
+    obj = mesh_object(f"Card {kind}", material, half_size=distance * math.tan(FOV / 2.0) * 0.6)
+    obj.location = (0.0, distance, 0.0)
+    obj.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    return obj
+
+
+@pytest.mark.parametrize("kind", ["mix", "principled"])
+def test_cutout_does_not_catch_its_own_atmosphere_in_cycles(kind: str, tmp_path: Path) -> None:
+    scene, sun = _render_scene("CYCLES")
+    scene.cycles.samples = 8
+    sun.rotation_euler = (math.radians(50), 0.0, 0.5)
+    far = _emissive_plane("Far wall", (0.8, 0.8, 0.8), 3000.0, 16, 8)
+    far.scale = (12.0, 12.0, 1.0)
+    _cutout_card(kind, 300.0, 0.2)
+    effect.enable_effect(scene)
+    pixels = _render(scene, tmp_path, f"cutout_{kind}")
+    hole, card = (10, 8), (22, 8)  # left half of the card is transparent
+    expected_far = _expected(scene, (0.8, 0.8, 0.8), 3000.0 / _pixel_direction(*hole)[1], *hole)
+    expected_card = _expected(scene, (0.2, 0.2, 0.2), 300.0 / _pixel_direction(*card)[1], *card)
+    np.testing.assert_allclose(pixels[hole[1], hole[0]], expected_far, rtol=3e-3)
+    np.testing.assert_allclose(pixels[card[1], card[0]], expected_card, rtol=3e-3)
