@@ -26,7 +26,7 @@ RIDGES = (
 )
 CAMERA_HEIGHT_M = 2.0
 SUN_ELEVATION_DEG = 25.0
-SUN_AZIMUTH_DEG = 200.0  # clockwise from north (+Y): the sun stands south-south-west, behind-left
+SUN_AZIMUTH_DEG = 20.0  # clockwise from north (+Y): the sun stands ahead and to the right (backlit haze)
 
 
 def _material(name: str, colour: tuple[float, float, float], roughness: float = 0.8) -> bpy.types.Material:
@@ -133,9 +133,10 @@ def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
     sun_data.energy = 4.0
     sun_data.angle = math.radians(0.533)
     sun = bpy.data.objects.new("Sun", sun_data)
-    # A sun lamp shines along its local -Z; rotate its +Z onto the direction to the sun.
+    # A sun lamp shines along its local -Z; rotate its +Z onto the direction to the sun
+    # (cos e sin A, cos e cos A, sin e) for elevation e and azimuth A clockwise from +Y.
     elevation, azimuth = math.radians(SUN_ELEVATION_DEG), math.radians(SUN_AZIMUTH_DEG)
-    sun.rotation_euler = (math.pi / 2 - elevation, 0.0, -azimuth)
+    sun.rotation_euler = (math.pi / 2 - elevation, 0.0, math.pi - azimuth)
     sun.location = (0.0, 0.0, 50.0)
     scene.collection.objects.link(sun)
 

@@ -2,10 +2,10 @@
 """Physics core of Atmos (numpy only, no ``bpy``).
 
 Atmosphere model, phase functions, aerial perspective (Hoffman & Preetham 2002, eq. 19), Chapman optical
-depths, ground sunlight and a brute-force single-scattering reference.
+depths, ground sunlight, the virtual-dome sky (``sky``) and a brute-force single-scattering reference.
 """
 
-from . import reference
+from . import reference, sky
 from .aerial_perspective import (SMALL_OPTICAL_DEPTH, aerial_perspective, extinction, inscattering,
                                  one_minus_exp_over_x)
 from .atmosphere import Atmosphere
@@ -27,6 +27,7 @@ __all__ = [
     "phase_rayleigh",
     "rayleigh_coefficients",
     "reference",
+    "sky",
     "relative_air_mass",
     "sun_color_and_strength",
     "sun_irradiance_ground",

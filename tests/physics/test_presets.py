@@ -315,9 +315,10 @@ def test_readme_table_is_the_schema():
 # ---------------------------------------------------------------------------------------------------------------
 # What each built-in looks like under the physics core
 #
-# Sky radiance: the core's sky model when it exists (``physics.sky.sky_radiance``), else the core's
-# brute-force single-scattering integral (``physics.reference.single_scattering``) along the view ray
-# from the ground to the top of the atmosphere over the spherical planet: the same physics, slower.
+# Sky radiance: the core's brute-force single-scattering integral (``physics.reference.single_scattering``)
+# along the view ray from the ground to the top of the atmosphere over the spherical planet: the physical
+# truth each preset is judged by. The shipped sky model (``physics.sky``, the virtual dome lit by the
+# ground-level sun) is checked against the same colour conditions in the last test of this file.
 
 
 def _direction(elevation_deg: float, azimuth_deg: float = 0.0) -> np.ndarray:
@@ -326,20 +327,10 @@ def _direction(elevation_deg: float, azimuth_deg: float = 0.0) -> np.ndarray:
     return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
 
 
-def _sky_model():
-    try:
-        return importlib.import_module("atmos_addon.physics.sky").sky_radiance
-    except (ImportError, AttributeError):
-        return None
-
-
 def _sky(atm: Atmosphere, sun_elevation_deg: float, view_elevation_deg: float, azimuth_from_sun_deg: float
          ) -> np.ndarray:
     """Sky radiance (R, G, B) seen from the ground, W/(m^2 sr) for the preset's top-of-atmosphere sun."""
     view, sun = _direction(view_elevation_deg, azimuth_from_sun_deg), _direction(sun_elevation_deg)
-    sky_radiance = _sky_model()
-    if sky_radiance is not None:
-        return np.asarray(sky_radiance(view, sun, atm, atm.sun_irradiance_top), dtype=float)
     from atmos_addon.physics import reference
 
     radius, top = atm.planet_radius, atm.atmosphere_height
@@ -387,3 +378,22 @@ def test_overcast_is_grey_and_low_contrast():
     zenith = _sky(overcast, 45.0, 90.0, 0.0)
     assert zenith.max() / zenith.min() < 1.2
     assert np.all(extinction(5000.0, overcast) < 0.5)  # a black object 5 km away keeps under half its contrast
+
+
+def test_builtin_looks_hold_in_the_shipped_sky_model():
+    """The colour conditions of the presets also hold for the sky the add-on renders (dome model, ground E_sun)."""
+    from atmos_addon.physics import sky, sun_irradiance_ground
+
+    def dome_sky(name: str, sun_elevation_deg: float, view_elevation_deg: float, azimuth_deg: float) -> np.ndarray:
+        atm = presets.load(name).atmosphere
+        e_sun = sun_irradiance_ground(math.radians(sun_elevation_deg), atm)
+        return sky.sky_radiance(_direction(view_elevation_deg, azimuth_deg), _direction(sun_elevation_deg), atm, e_sun)
+
+    zenith = dome_sky("clear", 60.0, 90.0, 0.0)
+    assert zenith[2] > zenith[1] > zenith[0]
+    horizon = dome_sky("sunset", 2.0, 1.0, 15.0)
+    assert horizon[0] > horizon[1] > horizon[2]
+    mars_day = dome_sky("mars", 40.0, 30.0, 180.0)
+    assert mars_day[0] > mars_day[1] > mars_day[2]
+    near, far = dome_sky("mars", 2.0, 2.0, 3.0), dome_sky("mars", 2.0, 2.0, 60.0)
+    assert near[2] / near[0] > 2.0 * far[2] / far[0]
