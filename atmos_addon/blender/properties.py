@@ -38,9 +38,10 @@ def _on_enabled(self, context) -> None:
 def _on_parameter(self, context) -> None:
     scene = self.id_data
     if self.enabled:
-        from . import sync
+        from . import settings_io, sync
 
-        sync.sync_scene(scene)
+        if not settings_io.is_batched(scene):
+            sync.sync_scene(scene)
 
 
 def _poll_sun(self, obj) -> bool:
@@ -107,13 +108,15 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         step=0.01,
         update=_on_parameter,
     )
-    mie_g: FloatProperty(
+    mie_g: FloatVectorProperty(
         name="Mie Anisotropy",
         description=(
-            "Henyey-Greenstein asymmetry of haze scattering: positive values scatter forward "
-            "(a bright halo when looking towards the sun), 0 scatters equally in all directions"
+            "Henyey-Greenstein asymmetry of haze scattering for red, green, blue: positive values scatter "
+            "forward (a bright halo when looking towards the sun), 0 scatters equally in all directions. "
+            "Different values per channel colour the halo (Mars dust: bluer forward glow)"
         ),
-        default=float(_CLEAR.mie_g[0]),
+        size=3,
+        default=tuple(float(v) for v in _CLEAR.mie_g),
         min=-0.999,
         max=0.999,
         update=_on_parameter,
@@ -136,6 +139,48 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         soft_max=10000.0,
         subtype="DISTANCE",
         unit="LENGTH",
+        update=_on_parameter,
+    )
+    planet_radius: FloatProperty(
+        name="Planet Radius",
+        description="Radius of the planet (metres): sets how fast the air thins towards the horizon for the sun",
+        default=float(_CLEAR.planet_radius),
+        min=1000.0,
+        soft_min=1.0e5,
+        soft_max=1.0e8,
+        subtype="DISTANCE",
+        unit="LENGTH",
+        update=_on_parameter,
+    )
+    atmosphere_height: FloatProperty(
+        name="Atmosphere Height",
+        description="Height of the top of the atmosphere above the ground (metres); above it is vacuum",
+        default=float(_CLEAR.atmosphere_height),
+        min=100.0,
+        soft_max=300000.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+        update=_on_parameter,
+    )
+    sun_irradiance_top: FloatVectorProperty(
+        name="Sun Irradiance at Top (W/m\u00b2)",
+        description=(
+            "Irradiance of the sun above the atmosphere for red, green, blue, in Blender sun-strength units "
+            "(W/m^2). The sun lamp and the haze get this times the transmittance of the air towards the sun"
+        ),
+        size=3,
+        default=tuple(float(v) for v in _CLEAR.sun_irradiance_top),
+        min=0.0,
+        soft_max=100.0,
+        update=_on_parameter,
+    )
+    wavelengths_nm: FloatVectorProperty(
+        name="Wavelengths (nm)",
+        description="Wavelengths the red, green and blue channels stand for, in nanometres",
+        size=3,
+        default=tuple(float(v) for v in _CLEAR.wavelengths_nm),
+        min=300.0,
+        max=1000.0,
         update=_on_parameter,
     )
     distance_scale: FloatProperty(

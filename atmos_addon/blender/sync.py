@@ -8,7 +8,6 @@ and for a depsgraph handler that follows the sun lamp.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import bpy
@@ -17,7 +16,8 @@ from bpy.app.handlers import persistent
 from mathutils import Vector
 
 from .. import import_sibling
-from ..physics import Atmosphere, sun_irradiance_ground
+from ..physics import sun_irradiance_ground
+from .settings_io import atmosphere_from_settings  # noqa: F401  (re-exported for callers of sync)
 
 #: Used when the scene has no sun lamp: 45 degrees above the horizon, towards +Y (north in Blender's convention).
 DEFAULT_SUN_DIRECTION = (0.0, math.sqrt(0.5), math.sqrt(0.5))
@@ -30,19 +30,6 @@ _last_counts: dict[str, tuple[int, int]] = {}
 def node_groups():
     """The extension's ``node_groups`` package (imported on first use)."""
     return import_sibling("node_groups")
-
-
-def atmosphere_from_settings(settings) -> Atmosphere:
-    """The physics :class:`Atmosphere` for ``scene.atmos`` (coefficients 1/km -> 1/m)."""
-    return dataclasses.replace(
-        Atmosphere(),
-        rayleigh_scattering=np.asarray(settings.rayleigh_scattering_per_km, dtype=float) / 1000.0,
-        mie_scattering=np.asarray(settings.mie_scattering_per_km, dtype=float) / 1000.0,
-        mie_absorption=np.asarray(settings.mie_absorption_per_km, dtype=float) / 1000.0,
-        mie_g=np.full(3, float(settings.mie_g)),
-        rayleigh_scale_height=float(settings.rayleigh_scale_height),
-        mie_scale_height=float(settings.mie_scale_height),
-    )
 
 
 def features_from_settings(settings):
@@ -119,7 +106,7 @@ def sync_scene(scene) -> None:
         beta_rayleigh=atmosphere.rayleigh_scattering,
         beta_mie=atmosphere.mie_scattering,
         beta_mie_absorption=atmosphere.mie_absorption,
-        mie_g=float(settings.mie_g),
+        mie_g=atmosphere.mie_g,
         sun_direction=direction,
         sun_irradiance=irradiance,
         metres_per_unit=metres_per_unit(scene),

@@ -48,7 +48,9 @@ def test_defaults_are_the_clear_atmosphere_in_per_km() -> None:
         np.testing.assert_allclose(settings.rayleigh_scattering_per_km, clear.rayleigh_scattering * 1000, rtol=1e-6)
         np.testing.assert_allclose(settings.mie_scattering_per_km, clear.mie_scattering * 1000, rtol=1e-6)
         np.testing.assert_allclose(settings.mie_absorption_per_km, clear.mie_absorption * 1000, rtol=1e-6)
-        assert settings.mie_g == pytest.approx(clear.mie_g[0])
+        np.testing.assert_allclose(settings.mie_g, clear.mie_g, rtol=1e-6)
+        assert settings.planet_radius == pytest.approx(clear.planet_radius)
+        np.testing.assert_allclose(settings.sun_irradiance_top, clear.sun_irradiance_top, rtol=1e-6)
         assert settings.rayleigh_scale_height == pytest.approx(clear.rayleigh_scale_height)
         assert settings.distance_scale == 1.0
     finally:
@@ -68,5 +70,25 @@ def test_operators_enable_and_disable_with_undo() -> None:
         assert bpy.ops.atmos.refresh() == {"FINISHED"}
         assert bpy.ops.atmos.disable() == {"FINISHED"}
         assert not scene.atmos.enabled
+    finally:
+        atmos_addon.unregister()
+
+
+def test_settings_round_trip_an_atmosphere_within_float32() -> None:
+    """Every Atmosphere field survives settings (float32 properties): the Mars preset comes back within 1e-6."""
+    from atmos_addon import presets
+    from atmos_addon.blender import settings_io
+
+    atmos_addon.register()
+    try:
+        scene = bpy.context.scene
+        mars = presets.load("mars").atmosphere
+        settings_io.apply_atmosphere(scene, mars)
+        back = settings_io.atmosphere_from_settings(scene.atmos)
+        for field in ("rayleigh_scattering", "mie_scattering", "mie_absorption", "mie_g", "sun_irradiance_top",
+                      "wavelengths_nm"):
+            np.testing.assert_allclose(getattr(back, field), getattr(mars, field), rtol=1e-6, err_msg=field)
+        for field in ("rayleigh_scale_height", "mie_scale_height", "planet_radius", "atmosphere_height"):
+            assert getattr(back, field) == pytest.approx(getattr(mars, field), rel=1e-6), field
     finally:
         atmos_addon.unregister()
