@@ -1,0 +1,328 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Quality levels of the aerial perspective, the accuracy bench that measures them, and the Auto choice.
+
+Levels (cheapest first)
+    * FAST: Hoffman & Preetham 2002, eq. 19: sea-level densities along the whole ray
+      (:mod:`~atmos_addon.physics.aerial_perspective`).
+    * BALANCED: exponential densities along the (curved) ray in closed form
+      (:mod:`~atmos_addon.physics.balanced`).
+    A Precise level (numerically integrated single + multiple scattering baked into lookup images) is
+    planned; it joins :class:`Level` when its evaluator exists.
+
+Bench
+    :data:`BENCH_CASES` are the situations a user meets, as data: camera altitude, sun, and sample rays
+    (view elevation, azimuth from the sun, distance). :func:`reference` integrates single scattering by brute
+    force (:func:`~atmos_addon.physics.reference.single_scattering`, spherical planet, sun transmittance from
+    every point, planet shadow); :func:`errors` compares a level with it.
+
+Error measure
+    Relative error with a floor, e = |x - x_ref| / max(|x_ref|, floor), per ray and channel, then the max and
+    the mean over the case's rays. Floors: transmittance F_ex 0.01 (an error below 1 % of full transmittance
+    is invisible whatever F_ex is); radiances (L_in and the pixel) 1 % of the case's brightest reference
+    pixel channel, so a channel that is nearly black in an otherwise bright image does not dominate.
+    The pixel is L = L0 F_ex + L_in for a grey Lambertian surface of albedo 0.3 lit by the ground sun:
+    L0 = 0.3 / pi * E_sun(ground) * max(sin(sun elevation), 0) (facing up, nothing else lights it); both the
+    level and the reference see the same L0.
+
+Auto rule (:func:`choose_level`)
+    1. The scene summary is mapped to the nearest bench situations: the planet (Mars for a radius below
+       5000 km), the geometry (aircraft if the camera reaches 5 km, drone if it reaches 200 m, distant range
+       if views reach beyond 30 km or the geometry spans more than 500 m of altitude, ground vista
+       otherwise), plus the low-sun cases when the sun is below 5 deg or animated.
+    2. The expected error of a level is the largest measured pixel error (max over rays and channels,
+       :data:`MEASURED_PIXEL_ERROR`) over those situations.
+    3. The cheapest implemented level whose expected error is within the tolerance wins; if none is, the
+       implemented level with the smallest expected error.
+    A scene without haze (``mie_zero``) or absorption uses the same measured errors: the haze, with its
+    short scale height, is what the constant-density model gets most wrong, so they are upper bounds.
+"""
+
+from __future__ import annotations
+
+import enum
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .aerial_perspective import extinction, inscattering
+from .atmosphere import Atmosphere
+from .balanced import extinction_balanced, inscattering_balanced, sun_optical_depths_ground
+from .reference import single_scattering
+from .sun import sun_irradiance_ground
+
+
+class Level(enum.Enum):
+    """Aerial-perspective quality levels, cheapest first."""
+
+    FAST = "fast"
+    BALANCED = "balanced"
+
+
+#: One-line descriptions for the UI.
+LEVEL_DESCRIPTIONS = {
+    Level.FAST: "Constant sea-level density along the ray (Hoffman & Preetham eq. 19); ground-level views",
+    Level.BALANCED: "Density falling with altitude along the curved ray, in closed form; drones, aircraft, "
+                    "distant mountains",
+}
+#: Levels with an evaluator, cheapest first (every level has one): :func:`choose_level` picks among these.
+IMPLEMENTED_LEVELS = tuple(Level)
+
+#: Albedo of the grey Lambertian test surface of the pixel error.
+BENCH_ALBEDO = 0.3
+#: Floor of the transmittance in the relative error (absolute transmittance units).
+TRANSMITTANCE_FLOOR = 0.01
+#: Floor of radiances in the relative error, as a fraction of the case's brightest reference pixel channel.
+RADIANCE_FLOOR_FRACTION = 0.01
+#: Reference sample counts (view ray, each sun-ray segment): 1e-5 relative agreement with 2001 / 513.
+REFERENCE_STEPS = (1001, 257)
+
+#: Planet radius below which a scene counts as Mars-like for the Auto choice, m.
+MARS_LIKE_RADIUS_M = 5.0e6
+#: Camera altitude from which a scene counts as an aircraft view, m.
+AIRCRAFT_ALTITUDE_M = 5000.0
+#: Camera altitude from which a scene counts as a drone view, m.
+DRONE_ALTITUDE_M = 200.0
+#: View distance beyond which a ground scene counts as a distant range, m.
+DISTANT_RANGE_M = 30_000.0
+#: Altitude span of the geometry beyond which a ground scene counts as a distant range (mountains), m.
+MOUNTAIN_SPAN_M = 500.0
+#: Sun elevation below which the low-sun (sunset) cases apply, deg.
+LOW_SUN_DEG = 5.0
+
+
+@dataclass(frozen=True)
+class BenchCase:
+    """One bench situation: an atmosphere preset, a camera altitude, the sun and sample view rays.
+
+    ``rays`` holds (view elevation deg, view azimuth from the sun's azimuth deg, distance m). ``grazing``
+    marks cases whose paths see a grazing sun (sunsets): the Balanced target exempts them.
+    """
+
+    name: str
+    description: str
+    preset: str
+    camera_altitude_m: float
+    sun_elevation_deg: float
+    rays: tuple[tuple[float, float, float], ...]
+    grazing: bool = False
+
+    @functools.cached_property
+    def atmosphere(self) -> Atmosphere:
+        """The case's atmosphere: ``"clear"`` is the default :class:`Atmosphere`, other names are presets."""
+        if self.preset == "clear":
+            return Atmosphere()
+        from ..presets import load
+
+        return load(self.preset).atmosphere
+
+    @property
+    def sun_dir(self) -> np.ndarray:
+        """Unit vector toward the sun (azimuth 0 = +x), z up."""
+        e = np.radians(self.sun_elevation_deg)
+        return np.array([np.cos(e), 0.0, np.sin(e)])
+
+    @property
+    def view_dirs(self) -> np.ndarray:
+        """Unit view directions, (n, 3)."""
+        e, a = (np.radians([r[i] for r in self.rays]) for i in (0, 1))
+        return np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], axis=-1)
+
+    @property
+    def distances_m(self) -> np.ndarray:
+        """Distances to the targets along the rays, m, (n,)."""
+        return np.array([r[2] for r in self.rays])
+
+    @property
+    def sun_irradiance(self) -> np.ndarray:
+        """Ground-level sun irradiance E_sun (the slides' choice for the whole ray), (3,)."""
+        return sun_irradiance_ground(np.radians(self.sun_elevation_deg), self.atmosphere)
+
+    @property
+    def surface_radiance(self) -> np.ndarray:
+        """L0 of the grey albedo-0.3 Lambertian surface facing up, lit by the ground sun, (3,)."""
+        cos_sun = max(np.sin(np.radians(self.sun_elevation_deg)), 0.0)
+        return BENCH_ALBEDO / np.pi * self.sun_irradiance * cos_sun
+
+
+def _grid(elevations_deg, azimuths_deg, distances_m) -> tuple[tuple[float, float, float], ...]:
+    return tuple((float(e), float(a), float(d)) for e in elevations_deg for a in azimuths_deg for d in distances_m)
+
+
+def _ground_hit(altitude_m: float, elevation_deg: float, planet_radius_m: float) -> float:
+    """Distance from ``altitude_m`` along a descending ray to the spherical ground, m."""
+    r0, c = planet_radius_m + altitude_m, np.sin(np.radians(elevation_deg))
+    return float(-r0 * c - np.sqrt(r0 * r0 * c * c - (r0 * r0 - planet_radius_m ** 2)))
+
+
+def _horizon_rays(altitude_m: float, planet_radius_m: float, azimuths_deg) -> tuple[tuple[float, float, float], ...]:
+    """Rays toward the geometric horizon (tangent to the ground), to a quarter, half and all of the way."""
+    r0 = planet_radius_m + altitude_m
+    dip = -np.degrees(np.arccos(planet_radius_m / r0))
+    tangent = float(np.sqrt(r0 * r0 - planet_radius_m ** 2))
+    return _grid([dip], azimuths_deg, [0.25 * tangent, 0.5 * tangent, 0.999 * tangent])
+
+
+_EARTH_R = Atmosphere().planet_radius
+_MARS_R = 3_389_500.0
+_VISTA_DISTANCES = (100.0, 1000.0, 5000.0, 10_000.0, 30_000.0)
+
+#: The benchmark situations.
+BENCH_CASES: tuple[BenchCase, ...] = (
+    BenchCase("ground_vista", "camera 2 m, level views 100 m to 30 km, sun 40 deg", "clear", 2.0, 40.0,
+              _grid([0.0, 1.0], [45.0, 180.0], _VISTA_DISTANCES)),
+    BenchCase("distant_range", "camera 2 m, mountains 50 to 150 km away, sun 40 deg", "clear", 2.0, 40.0,
+              _grid([0.0, 0.5, 1.5], [90.0], [50_000.0, 100_000.0, 150_000.0])),
+    BenchCase("drone", "camera 2 km looking down 45 deg to the ground, sun 45 deg", "clear", 2000.0, 45.0,
+              _grid([-45.0], [0.0, 90.0, 180.0], [500.0, 1500.0, _ground_hit(2000.0, -45.0, _EARTH_R)])),
+    BenchCase("aircraft", "camera 10 km looking at the geometric horizon (357 km), sun 30 deg", "clear", 10_000.0,
+              30.0, _horizon_rays(10_000.0, _EARTH_R, [0.0, 90.0, 180.0])),
+    BenchCase("sunset_toward", "camera 2 m, sun 1 deg, level views toward the sun", "clear", 2.0, 1.0,
+              _grid([0.0, 1.0], [0.0], _VISTA_DISTANCES), grazing=True),
+    BenchCase("sunset_away", "camera 2 m, sun 1 deg, level views away from the sun", "clear", 2.0, 1.0,
+              _grid([0.0, 1.0], [180.0], _VISTA_DISTANCES), grazing=True),
+    BenchCase("mars_noon", "Mars, camera 2 m, level views 100 m to 50 km, sun 80 deg", "mars", 2.0, 80.0,
+              _grid([0.0, 2.0], [45.0, 180.0], (100.0, 1000.0, 10_000.0, 50_000.0))),
+    BenchCase("mars_sunset", "Mars, camera 2 m, sun 2 deg, level views toward and away from the sun", "mars", 2.0,
+              2.0, _grid([0.0, 2.0], [0.0, 180.0], (100.0, 1000.0, 10_000.0, 50_000.0)), grazing=True),
+)
+_CASES_BY_NAME = {case.name: case for case in BENCH_CASES}
+
+
+def bench_case(name: str) -> BenchCase:
+    """The bench case called ``name``."""
+    try:
+        return _CASES_BY_NAME[name]
+    except KeyError:
+        raise ValueError(f"unknown bench case {name!r}; expected one of {sorted(_CASES_BY_NAME)}") from None
+
+
+def evaluate(level: Level, case: BenchCase, dtype=np.float64, sun_at_altitude: bool = True
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(F_ex, L_in) of ``level`` for the case's rays, each (n, 3).
+
+    ``sun_at_altitude`` (Balanced only, default on) raises E_sun to its value at the altitude of each piece
+    of the ray; ``False`` keeps the ground E_sun of the slides (the bench reports both).
+    """
+    atm, views, s = case.atmosphere, case.view_dirs, case.distances_m
+    mu = views @ case.sun_dir
+    e_sun = case.sun_irradiance
+    if level is Level.FAST:
+        return extinction(s, atm, dtype), inscattering(s, mu, atm, e_sun, dtype)
+    if level is Level.BALANCED:
+        taus = sun_optical_depths_ground(np.radians(case.sun_elevation_deg), atm) if sun_at_altitude else None
+        h0 = case.camera_altitude_m
+        return (extinction_balanced(h0, views, s, atm, dtype),
+                inscattering_balanced(h0, views, s, mu, atm, e_sun, dtype, sun_optical_depths=taus))
+    raise ValueError(f"unknown quality level {level!r}; expected one of {[lv.value for lv in Level]}")
+
+
+@functools.lru_cache(maxsize=None)
+def reference(case: BenchCase) -> tuple[np.ndarray, np.ndarray]:
+    """Brute-force single scattering (F_ex, L_in) for the case's rays, each (n, 3); cached per case.
+
+    The reference sees the sun from every point through the real (curved) atmosphere, not the ground E_sun.
+    """
+    n_view, n_sun = REFERENCE_STEPS
+    results = [single_scattering(case.camera_altitude_m, view, distance, case.sun_dir, case.atmosphere,
+                                 n_steps=n_view, n_sun_steps=n_sun)
+               for view, distance in zip(case.view_dirs, case.distances_m)]
+    f_ex, l_in = (np.array([r[i] for r in results]) for i in (0, 1))
+    f_ex.flags.writeable = l_in.flags.writeable = False
+    return f_ex, l_in
+
+
+def relative_error(value: np.ndarray, ref: np.ndarray, floor: float) -> np.ndarray:
+    """|value - ref| / max(|ref|, floor), elementwise (see the module docstring for the floors)."""
+    return np.abs(value - ref) / np.maximum(np.abs(ref), floor)
+
+
+def errors(level: Level, case: BenchCase, sun_at_altitude: bool = True) -> dict[str, np.ndarray]:
+    """Max and mean relative errors per channel (3,) of F_ex, L_in and the pixel L0 F_ex + L_in.
+
+    Keys ``f_ex_max``, ``f_ex_mean``, ``l_in_max``, ``l_in_mean``, ``pixel_max``, ``pixel_mean``.
+    """
+    f_ex, l_in = evaluate(level, case, sun_at_altitude=sun_at_altitude)
+    f_ref, l_ref = reference(case)
+    l0 = case.surface_radiance
+    pixel, pixel_ref = l0 * f_ex + l_in, l0 * f_ref + l_ref
+    radiance_floor = max(RADIANCE_FLOOR_FRACTION * float(np.max(pixel_ref)), np.finfo(np.float64).tiny)
+    result = {}
+    for name, value, ref, floor in (("f_ex", f_ex, f_ref, TRANSMITTANCE_FLOOR), ("l_in", l_in, l_ref, radiance_floor),
+                                    ("pixel", pixel, pixel_ref, radiance_floor)):
+        err = relative_error(value, ref, floor)
+        result[f"{name}_max"], result[f"{name}_mean"] = err.max(axis=0), err.mean(axis=0)
+    return result
+
+
+#: Max pixel error (over rays and channels) per (level, case), from ``tools/bench_accuracy.py``; the
+#: Auto choice reads this table (a test checks it against a fresh measurement).
+MEASURED_PIXEL_ERROR: dict[tuple[Level, str], float] = {
+    (Level.FAST, "ground_vista"): 0.1290,
+    (Level.BALANCED, "ground_vista"): 0.0051,
+    (Level.FAST, "distant_range"): 0.3211,
+    (Level.BALANCED, "distant_range"): 0.0080,
+    (Level.FAST, "drone"): 0.0476,
+    (Level.BALANCED, "drone"): 0.0021,
+    (Level.FAST, "aircraft"): 1.8068,
+    (Level.BALANCED, "aircraft"): 0.0726,
+    (Level.FAST, "sunset_toward"): 0.3260,
+    (Level.BALANCED, "sunset_toward"): 0.2351,
+    (Level.FAST, "sunset_away"): 0.3355,
+    (Level.BALANCED, "sunset_away"): 0.3666,
+    (Level.FAST, "mars_noon"): 0.1006,
+    (Level.BALANCED, "mars_noon"): 0.0074,
+    (Level.FAST, "mars_sunset"): 0.5678,
+    (Level.BALANCED, "mars_sunset"): 0.4282,
+}
+
+
+@dataclass(frozen=True)
+class SceneSummary:
+    """What the Auto choice needs to know about a scene (lengths m, angles deg)."""
+
+    camera_altitude_range_m: tuple[float, float] = (0.0, 2.0)
+    geometry_altitude_span_m: float = 0.0
+    max_view_distance_m: float = 10_000.0
+    sun_elevation_deg: float = 45.0
+    mie_zero: bool = False
+    absorption_zero: bool = False
+    sun_animated: bool = False
+    planet_radius_m: float = field(default=_EARTH_R)
+
+
+def nearest_cases(summary: SceneSummary) -> tuple[str, ...]:
+    """Names of the bench situations that stand for ``summary`` (rule 1 of the module docstring)."""
+    low_sun = summary.sun_animated or summary.sun_elevation_deg < LOW_SUN_DEG
+    if summary.planet_radius_m < MARS_LIKE_RADIUS_M:
+        return ("mars_noon", "mars_sunset") if low_sun else ("mars_noon",)
+    top = max(summary.camera_altitude_range_m)
+    if top >= AIRCRAFT_ALTITUDE_M:
+        geometry = "aircraft"
+    elif top >= DRONE_ALTITUDE_M:
+        geometry = "drone"
+    elif summary.max_view_distance_m > DISTANT_RANGE_M or summary.geometry_altitude_span_m > MOUNTAIN_SPAN_M:
+        geometry = "distant_range"
+    else:
+        geometry = "ground_vista"
+    return (geometry, "sunset_toward", "sunset_away") if low_sun else (geometry,)
+
+
+def expected_error(level: Level, summary: SceneSummary) -> float:
+    """Largest measured pixel error of ``level`` over the situations standing for ``summary``."""
+    return max(MEASURED_PIXEL_ERROR[(level, name)] for name in nearest_cases(summary))
+
+
+def choose_level(summary: SceneSummary, tolerance: float = 0.02) -> tuple[Level, float]:
+    """(level, expected relative pixel error): the cheapest implemented level within ``tolerance``.
+
+    If no implemented level meets it, the one with the smallest expected error (rule 3). Only
+    :data:`IMPLEMENTED_LEVELS` are considered.
+    """
+    if not tolerance > 0.0:
+        raise ValueError(f"choose_level: tolerance must be a relative error > 0 (e.g. 0.02); got {tolerance!r}")
+    expected = [(level, expected_error(level, summary)) for level in IMPLEMENTED_LEVELS]
+    for level, error in expected:
+        if error <= tolerance:
+            return level, error
+    return min(expected, key=lambda item: item[1])

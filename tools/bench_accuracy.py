@@ -1,0 +1,131 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Accuracy bench of the aerial-perspective quality levels against brute-force single scattering.
+
+    .venv/bpy-5.0.1/bin/python tools/bench_accuracy.py [--no-write]
+
+Prints a markdown table (level x case: max / mean relative error of F_ex, L_in and the pixel, see
+:mod:`atmos_addon.physics.quality` for the error measure), writes ``docs/quality.md`` and, if matplotlib
+is importable, ``docs/quality_tradeoff.png`` (error against node count). Also prints the
+``MEASURED_PIXEL_ERROR`` table that the Auto choice reads. Takes about 15 s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO_ROOT))
+
+from atmos_addon.physics.quality import (BENCH_CASES, IMPLEMENTED_LEVELS, Level, errors,  # noqa: E402
+                                         reference)
+from node_groups.aerial_perspective import NODE_COUNTS  # noqa: E402
+
+COMMAND = ".venv/bpy-5.0.1/bin/python tools/bench_accuracy.py"
+
+#: Estimated node count of the Balanced level (no node tree yet): the Fast tree with Rayleigh + Mie +
+#: absorption, plus the ops of the closed form counted one node each (vector nodes do the 3 channels):
+#: curvature coefficient and piece ends (5 altitudes of the parabola, sag) ~ 20; per piece and species the
+#: column l e^{-h_lo/H} phi1(|dh|/H) (min, max 0, divide, exp, |dh|, divide, phi1 ~ 8, multiply) ~ 16, x 4 x 2
+#: = 128; per piece the optical depth, transmittance, sun gain (2 exp, 2 multiply-add), scattering column and
+#: accumulation ~ 14, x 4 = 56. About 81 + 20 + 128 + 56 = 285, minus the Fast tree's single-segment terms.
+BALANCED_NODE_ESTIMATE = NODE_COUNTS["rayleigh+mie+abs"] + 20 + 128 + 56 - 16
+
+ROWS = [("fast", Level.FAST, True), ("balanced", Level.BALANCED, True),
+        ("balanced, ground E_sun", Level.BALANCED, False)]
+QUANTITIES = ("f_ex", "l_in", "pixel")
+
+
+def _pct(value: float) -> str:
+    return f"{100.0 * value:.2f}"
+
+
+def measure() -> tuple[list[tuple[str, str, dict]], float]:
+    """(row label, case name, errors) for every row and case, and the seconds taken."""
+    start = time.perf_counter()
+    results = []
+    for case in BENCH_CASES:
+        reference(case)
+        for label, level, sun in ROWS:
+            results.append((label, case.name, errors(level, case, sun_at_altitude=sun)))
+    return results, time.perf_counter() - start
+
+
+def markdown_table(results) -> str:
+    """Level x case: max / mean relative error in % (max over channels) of F_ex, L_in and the pixel."""
+    lines = ["| level | case | F_ex max | F_ex mean | L_in max | L_in mean | pixel max | pixel mean |",
+             "|---|---|---:|---:|---:|---:|---:|---:|"]
+    for label, name, err in results:
+        cells = [_pct(err[f"{q}_{stat}"].max()) for q in QUANTITIES for stat in ("max", "mean")]
+        lines.append(f"| {label} | {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def measured_table_source(results) -> str:
+    """The MEASURED_PIXEL_ERROR literal for atmos_addon/physics/quality.py."""
+    lines = ["MEASURED_PIXEL_ERROR: dict[tuple[Level, str], float] = {"]
+    for label, name, err in results:
+        level = {"fast": "FAST", "balanced": "BALANCED"}.get(label)
+        if level:
+            lines.append(f'    (Level.{level}, "{name}"): {float(err["pixel_max"].max()):.4f},')
+    return "\n".join(lines + ["}"])
+
+
+def write_plot(results, path: Path) -> bool:
+    """Pixel error against node count per case; False (and a message) when matplotlib is missing."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is not installed: docs/quality_tradeoff.png not written "
+              "(pip install matplotlib into the venv to get it)", file=sys.stderr)
+        return False
+    nodes = {"fast": NODE_COUNTS["rayleigh+mie+abs"], "balanced": BALANCED_NODE_ESTIMATE}
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for case in BENCH_CASES:
+        points = [(nodes[label], err["pixel_max"].max()) for label, name, err in results
+                  if name == case.name and label in nodes]
+        ax.plot(*zip(*points), marker="o", label=case.name)
+    ax.axhline(0.02, color="grey", linestyle="--", linewidth=0.8)
+    ax.set_yscale("log")
+    ax.set_xlabel("node count (Balanced: estimate until its node tree exists)")
+    ax.set_ylabel("max relative pixel error")
+    ax.set_title("Aerial perspective: accuracy against cost")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    return True
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--no-write", action="store_true", help="print only; do not write docs/")
+    args = parser.parse_args(argv)
+    results, seconds = measure()
+    table = markdown_table(results)
+    print(table)
+    print(f"\n{len(BENCH_CASES)} cases, {sum(len(c.rays) for c in BENCH_CASES)} rays, {seconds:.1f} s\n")
+    print(measured_table_source(results))
+    if not args.no_write:
+        docs = REPO_ROOT / "docs"
+        docs.mkdir(exist_ok=True)
+        plot = write_plot(results, docs / "quality_tradeoff.png")
+        text = (REPO_ROOT / "docs" / "quality.md").read_text() if (docs / "quality.md").exists() else ""
+        start, end = "<!-- bench:begin -->", "<!-- bench:end -->"
+        block = (f"{start}\nGenerated by `{COMMAND}` ({seconds:.0f} s). Relative errors in %, max over channels; "
+                 f"Fast {NODE_COUNTS['rayleigh+mie+abs']} nodes, Balanced about {BALANCED_NODE_ESTIMATE} "
+                 f"(estimate).\n\n{table}\n" + ("\n![error against node count](quality_tradeoff.png)\n" if plot else "")
+                 + end)
+        if start in text and end in text:
+            text = text[:text.index(start)] + block + text[text.index(end) + len(end):]
+        else:
+            text = text + "\n" + block + "\n"
+        (docs / "quality.md").write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
