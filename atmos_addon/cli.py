@@ -1,87 +1,398 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The Atmos command line (``python -m atmos_addon``).
+"""The Atmos command line: ``python -m atmos_addon ARGS`` (pip ``bpy``) or ``blender --command atmos ARGS``.
 
-Sub-commands:
-  demo     build the sample valley, render it without and with aerial perspective, write PNGs.
-Errors end in a one-line message on stderr and a non-zero exit code, never a traceback.
+Sub-commands (``--help`` on each for its options):
+  render SCENE --preset P --output PATH     render frames with the effect (PNG, or multilayer EXR with AOVs)
+  apply SCENE --preset P --output OUT.blend write a .blend with the effect set up, for farms without Atmos
+  contact-sheet SCENE --presets a,b --elevations 60,20 --output sheet.png
+  presets list | show NAME | validate FILE
+  demo [--output DIR]                       render the sample scenes with every preset (the README's first command)
+SCENE is a .blend file, or the name of a sample scene (valley, mars) when run from a source checkout.
+Progress goes to stderr; a failure ends in one line ``atmos: error: ...`` and exit code 2, never a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
 import time
 from pathlib import Path
+
+from . import api, import_sibling
+from . import presets as preset_library
+
+SAMPLE_SCENES = ("valley", "mars")
+ENGINES = ("cycles", "eevee")
+QUALITY_LEVELS = ("fast",)
+EXIT_ERROR = 2
 
 
 class CliError(Exception):
     """A user-facing failure: printed as one line, exit code 2."""
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a bad argument in one line (``atmos: error: ...``) instead of the usage block."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise CliError(f"{message} (try: {self.prog} --help)")
+
+
 def _log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def _render_to(scene, path: Path) -> float:
-    """Render ``scene`` to ``path`` (PNG) and return the seconds it took."""
+# ---------------------------------------------------------------------------------------------- argument values
+
+def _resolution(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(part) for part in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"resolution must look like 480x270, got '{text}'") from None
+    if not (1 <= width <= 16384 and 1 <= height <= 16384):
+        raise argparse.ArgumentTypeError(f"resolution {width}x{height} is outside 1..16384 pixels")
+    return width, height
+
+
+def _frames(text: str) -> tuple[int, int]:
+    try:
+        first, _, last = text.partition("-")
+        start, end = int(first), int(last or first)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"frames must look like 1-10 or 5, got '{text}'") from None
+    if end < start:
+        raise argparse.ArgumentTypeError(f"frame range {text} ends before it starts")
+    return start, end
+
+
+def _degrees(low: float, high: float):
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a number of degrees") from None
+        if not (math.isfinite(value) and low <= value <= high):
+            raise argparse.ArgumentTypeError(f"{value:g} degrees is outside [{low:g}, {high:g}]")
+        return value
+    return parse
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+    return value
+
+
+def _csv(kind):
+    def parse(text: str) -> list:
+        items = [item.strip() for item in text.split(",") if item.strip()]
+        if not items:
+            raise argparse.ArgumentTypeError("give at least one value, separated by commas")
+        return [kind(item) for item in items]
+    return parse
+
+
+# ---------------------------------------------------------------------------------------------- scene handling
+
+def _open_scene(spec: str):
+    """Open the .blend ``spec`` (or build the sample scene of that name) and return its active scene."""
     import bpy
 
-    scene.render.image_settings.file_format = "PNG"
-    scene.render.filepath = str(path)
-    start = time.perf_counter()
-    bpy.ops.render.render(write_still=True, scene=scene.name)
-    return time.perf_counter() - start
-
-
-def cmd_demo(args: argparse.Namespace) -> int:
-    """Render the valley sample scene without and with the effect into ``args.output``."""
-    import atmos_addon
-    from atmos_addon import import_sibling
-    from atmos_addon.blender import effect
-
+    path = Path(spec)
+    if spec in SAMPLE_SCENES and not path.exists():
+        try:
+            module = import_sibling(f"sample_scenes.{spec}")
+        except ImportError as error:
+            raise CliError(f"sample scene '{spec}' needs a source checkout of Atmos ({error})") from error
+        return module.build()
+    if not path.is_file():
+        raise CliError(f"scene file '{spec}' does not exist (give a .blend file, or one of: {', '.join(SAMPLE_SCENES)})")
     try:
-        valley = import_sibling("sample_scenes.valley")
-    except ImportError as error:
-        raise CliError(f"the sample scenes are not here ({error}); run the demo from a source checkout") from error
-    output = Path(args.output).resolve()
-    output.mkdir(parents=True, exist_ok=True)
-    atmos_addon.register()
-    try:
-        scene = valley.build(resolution=(args.width, args.height))
+        bpy.ops.wm.open_mainfile(filepath=str(path.resolve()), load_ui=False)
+    except RuntimeError as error:
+        first_line = str(error).strip().splitlines()[0] if str(error).strip() else "unknown reason"
+        raise CliError(f"cannot read '{spec}' as a .blend file: {first_line}") from error
+    return bpy.context.scene
+
+
+def _configure(scene, args: argparse.Namespace) -> None:
+    """Apply the render options shared by render, apply and contact-sheet."""
+    if getattr(args, "engine", None):
+        scene.render.engine = "CYCLES" if args.engine == "cycles" else _eevee_engine_id()
+    if getattr(args, "samples", None):
         scene.cycles.samples = args.samples
-        plain = output / "valley_plain.png"
-        _log(f"rendering {plain} (no atmosphere) ...")
-        seconds = _render_to(scene, plain)
-        _log(f"  {seconds:.1f} s")
-        report = effect.enable_effect(scene)
-        for line in report.messages:
-            _log(f"  atmos: {line}")
-        with_effect = output / "valley.png"
-        _log(f"rendering {with_effect} (aerial perspective) ...")
-        seconds = _render_to(scene, with_effect)
-        _log(f"  {seconds:.1f} s")
+        if hasattr(scene, "eevee"):
+            scene.eevee.taa_render_samples = args.samples
+    if getattr(args, "resolution", None):
+        scene.render.resolution_x, scene.render.resolution_y = args.resolution
+        scene.render.resolution_percentage = 100
+
+
+def set_output_format(image_settings, multilayer_exr: bool) -> None:
+    """PNG, or 32-bit multilayer OpenEXR (every pass, the atmosphere AOVs included).
+
+    Blender 5.0 chooses multilayer output through ``media_type``; 4.2 has it as a file format.
+    """
+    if "media_type" in image_settings.bl_rna.properties:
+        image_settings.media_type = "MULTI_LAYER_IMAGE" if multilayer_exr else "IMAGE"
+    image_settings.file_format = "OPEN_EXR_MULTILAYER" if multilayer_exr else "PNG"
+    if multilayer_exr:
+        image_settings.color_depth = "32"
+
+
+def _eevee_engine_id() -> str:
+    import bpy
+
+    engines = {item.identifier for item in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items}
+    return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in engines else "BLENDER_EEVEE"
+
+
+def _enable(scene, args: argparse.Namespace) -> None:
+    try:
+        report = api.enable(scene, preset=args.preset, sun_elevation_deg=args.sun_elevation,
+                            sun_azimuth_deg=args.sun_azimuth)
+    except api.AtmosError as error:
+        raise CliError(str(error)) from error
+    for line in report.messages:
+        if line:
+            _log(f"atmos: {line}")
+
+
+def _frame_path(output: Path, frame: int, several: bool) -> Path:
+    if "#" in output.name:
+        digits = output.name.count("#")
+        return output.with_name(output.name.replace("#" * digits, f"{frame:0{digits}d}", 1))
+    if several:
+        return output.with_name(f"{output.stem}_{frame:04d}{output.suffix}")
+    return output
+
+
+class _SampleProgress:
+    """Prints Blender's render statistics (with the sample count) to stderr, at most twice a second."""
+
+    def __init__(self) -> None:
+        self._last = 0.0
+
+    def __call__(self, stats: str, *_args) -> None:
+        now = time.monotonic()
+        if now - self._last >= 0.5 and "Sample" in str(stats):
+            self._last = now
+            _log(f"  {str(stats).strip()}")
+
+
+# ---------------------------------------------------------------------------------------------- sub-commands
+
+def cmd_render(args: argparse.Namespace) -> int:
+    import bpy
+
+    output = Path(args.output).resolve()
+    exr = output.suffix.lower() == ".exr"
+    if output.suffix.lower() not in {".png", ".exr"}:
+        raise CliError(f"--output must end in .png or .exr (multilayer EXR with the atmosphere AOVs), got '{output.name}'")
+    scene = _open_scene(args.scene)
+    if scene.camera is None:
+        raise CliError(f"scene '{scene.name}' has no camera: add one or pick another scene")
+    _configure(scene, args)
+    _enable(scene, args)
+    set_output_format(scene.render.image_settings, multilayer_exr=exr)
+    start, end = args.frames or (scene.frame_current, scene.frame_current)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    progress = _SampleProgress()
+    bpy.app.handlers.render_stats.append(progress)
+    times = []
+    try:
+        for frame in range(start, end + 1):
+            scene.frame_set(frame)
+            path = _frame_path(output, frame, several=end > start)
+            scene.render.filepath = str(path)
+            _log(f"atmos: frame {frame} ({frame - start + 1}/{end - start + 1}) -> {path}")
+            began = time.perf_counter()
+            bpy.ops.render.render(write_still=True, scene=scene.name)
+            times.append(time.perf_counter() - began)
+            print(path)
     finally:
-        atmos_addon.unregister()
-    print(f"wrote {plain}\nwrote {with_effect}")
+        bpy.app.handlers.render_stats.remove(progress)
+    _log(f"atmos: rendered {len(times)} frame(s), {sum(times) / len(times):.2f} s per frame")
     return 0
 
 
+def cmd_apply(args: argparse.Namespace) -> int:
+    import bpy
+
+    output = Path(args.output).resolve()
+    if output.suffix.lower() != ".blend":
+        raise CliError(f"--output must be a .blend file, got '{output.name}'")
+    scene = _open_scene(args.scene)
+    if scene.camera is None:
+        raise CliError(f"scene '{scene.name}' has no camera: add one or pick another scene")
+    _configure(scene, args)
+    _enable(scene, args)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=str(output), copy=True, compress=True)
+    print(output)
+    _log(f"atmos: wrote {output}: renders with plain `blender -b {output.name} -f N`, no add-on needed")
+    return 0
+
+
+def cmd_contact_sheet(args: argparse.Namespace) -> int:
+    output = Path(args.output).resolve()
+    if output.suffix.lower() != ".png":
+        raise CliError(f"--output must be a .png file, got '{output.name}'")
+    for name in args.presets:
+        api.load_preset(name)  # refuse an unknown or bad preset before opening the scene
+    scene = _open_scene(args.scene)
+    if scene.camera is None:
+        raise CliError(f"scene '{scene.name}' has no camera: add one or pick another scene")
+    _configure(scene, args)
+    api.enable(scene)
+    from .blender import contact_sheet
+
+    total = len(args.presets) * len(args.elevations)
+
+    def progress(done: int, label: str) -> None:
+        _log(f"atmos: contact sheet cell {done}/{total}: {label}")
+
+    began = time.perf_counter()
+    path = contact_sheet.render_contact_sheet(scene, args.presets, args.elevations, cell_size=args.cell,
+                                              output_path=output, progress=progress)
+    _log(f"atmos: contact sheet of {total} cells in {time.perf_counter() - began:.1f} s")
+    print(path)
+    return 0
+
+
+def cmd_presets(args: argparse.Namespace) -> int:
+    try:
+        if args.action == "list":
+            for name in preset_library.names():
+                print(f"{name}\t{'built-in' if preset_library.is_builtin(name) else 'user'}")
+        elif args.action == "show":
+            from .presets import writer
+
+            print(writer.dumps(preset_library.to_document(preset_library.load(args.target))), end="")
+        else:
+            preset = preset_library.validate_file(Path(args.target))
+            print(f"{args.target}: valid preset '{preset.name}'")
+    except preset_library.PresetError as error:
+        raise CliError(str(error)) from error
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """Render the valley with every built-in preset and the Mars scene; write a contact sheet and an EXR."""
+    from .blender import contact_sheet
+
+    output = Path(args.output).resolve()
+    output.mkdir(parents=True, exist_ok=True)
+    began = time.perf_counter()
+    scene = _open_scene("valley")
+    scene.cycles.samples = args.samples
+    api.enable(scene)
+    valley_presets = [name for name in preset_library.BUILTIN_NAMES if name != "mars"]
+    elevations = [60.0, 20.0, 5.0, 1.0]
+
+    def progress(done: int, label: str) -> None:
+        _log(f"atmos: demo cell {done}/{len(valley_presets) * len(elevations)}: {label}")
+
+    sheet = contact_sheet.render_contact_sheet(scene, valley_presets, elevations, cell_size=tuple(args.cell),
+                                               output_path=output / "contact_sheet.png", progress=progress)
+    exr = output / "valley_aovs.exr"
+    scene.render.resolution_x, scene.render.resolution_y = args.cell
+    set_output_format(scene.render.image_settings, multilayer_exr=True)
+    scene.render.filepath = str(exr)
+    _log(f"atmos: rendering {exr} (multilayer EXR with the atmosphere AOVs)")
+    import bpy
+
+    bpy.ops.render.render(write_still=True, scene=scene.name)
+    mars = _open_scene("mars")
+    mars.cycles.samples = args.samples
+    mars.render.resolution_x, mars.render.resolution_y = args.cell
+    api.enable(mars, preset="mars")
+    mars_png = output / "mars.png"
+    set_output_format(mars.render.image_settings, multilayer_exr=False)
+    mars.render.filepath = str(mars_png)
+    _log(f"atmos: rendering {mars_png}")
+    bpy.ops.render.render(write_still=True, scene=mars.name)
+    for path in (sheet, exr, mars_png):
+        print(f"wrote {path}")
+    _log(f"atmos: demo finished in {time.perf_counter() - began:.0f} s")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------- parser
+
+def _add_effect_options(parser: argparse.ArgumentParser, *, preset_required: bool) -> None:
+    parser.add_argument("scene", help="a .blend file, or a sample scene name: " + ", ".join(SAMPLE_SCENES))
+    parser.add_argument("--preset", required=preset_required, help="built-in or user preset name, or a .toml file")
+    parser.add_argument("--sun-elevation", type=_degrees(-90.0, 90.0), help="sun elevation in degrees")
+    parser.add_argument("--sun-azimuth", type=_degrees(-360.0, 360.0), help="sun azimuth in degrees, clockwise from +Y")
+    parser.add_argument("--engine", choices=ENGINES, help="render engine (default: the scene's)")
+    parser.add_argument("--samples", type=_positive_int, help="render samples")
+    parser.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
+    parser.add_argument("--quality", choices=QUALITY_LEVELS, default="fast",
+                        help="accuracy level (fast: constant density, Hoffman & Preetham 2002)")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="atmos", description="Atmos: physically based aerial perspective.")
-    sub = parser.add_subparsers(dest="command", required=True)
-    demo = sub.add_parser("demo", help="render the sample valley with and without aerial perspective")
+    parser = _Parser(prog="atmos", description="Atmos: physically based aerial perspective, sky and sunlight.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    render = sub.add_parser("render", help="render a scene with the effect")
+    _add_effect_options(render, preset_required=True)
+    render.add_argument("--frames", type=_frames, help="frame range A-B (default: the current frame)")
+    render.add_argument("--output", required=True, help="output .png or .exr (multilayer, with the AOVs); "
+                                                         "#### in the name is replaced by the frame number")
+    render.set_defaults(func=cmd_render)
+
+    apply = sub.add_parser("apply", help="write a .blend with the effect set up (farm-ready, no add-on needed)")
+    _add_effect_options(apply, preset_required=True)
+    apply.add_argument("--output", required=True, help="the .blend file to write")
+    apply.set_defaults(func=cmd_apply)
+
+    sheet = sub.add_parser("contact-sheet", help="render presets x sun elevations into one labelled image")
+    sheet.add_argument("scene", help="a .blend file, or a sample scene name: " + ", ".join(SAMPLE_SCENES))
+    sheet.add_argument("--presets", type=_csv(str), default=list(preset_library.BUILTIN_NAMES))
+    sheet.add_argument("--elevations", type=_csv(_degrees(-90.0, 90.0)), default=[60.0, 20.0, 5.0, 1.0])
+    sheet.add_argument("--cell", type=_resolution, default=(160, 90), help="cell size WIDTHxHEIGHT")
+    sheet.add_argument("--engine", choices=ENGINES)
+    sheet.add_argument("--samples", type=_positive_int)
+    sheet.add_argument("--output", required=True, help="the .png to write")
+    sheet.set_defaults(func=cmd_contact_sheet)
+
+    presets = sub.add_parser("presets", help="list, show or validate presets")
+    presets.add_argument("action", choices=("list", "show", "validate"))
+    presets.add_argument("target", nargs="?", help="preset name (show) or file (validate)")
+    presets.set_defaults(func=cmd_presets)
+
+    demo = sub.add_parser("demo", help="render the sample scenes with every preset into a contact sheet")
     demo.add_argument("--output", default="out", help="output folder (default: out)")
-    demo.add_argument("--width", type=int, default=480)
-    demo.add_argument("--height", type=int, default=270)
-    demo.add_argument("--samples", type=int, default=32)
+    demo.add_argument("--cell", type=_resolution, default=(240, 135), help="cell size WIDTHxHEIGHT")
+    demo.add_argument("--samples", type=_positive_int, default=16)
     demo.set_defaults(func=cmd_demo)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run the CLI; returns the exit code (0 success, 2 refused input or failure)."""
     try:
+        args = build_parser().parse_args(argv)
+        if args.command == "presets" and args.action in {"show", "validate"} and not args.target:
+            raise CliError(f"presets {args.action} needs a {'name' if args.action == 'show' else 'file'}")
         return args.func(args)
     except CliError as error:
         _log(f"atmos: error: {error}")
-        return 2
+        return EXIT_ERROR
+    except api.AtmosError as error:
+        _log(f"atmos: error: {error}")
+        return EXIT_ERROR
+    except Exception as error:  # a bug, not bad input: one line, the traceback only on request
+        if os.environ.get("ATMOS_DEBUG"):
+            raise
+        _log(f"atmos: error: internal error {type(error).__name__}: {error} (set ATMOS_DEBUG=1 for the traceback "
+             "and please report it)")
+        return EXIT_ERROR

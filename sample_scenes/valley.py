@@ -29,7 +29,7 @@ SUN_ELEVATION_DEG = 25.0
 SUN_AZIMUTH_DEG = 20.0  # clockwise from north (+Y): the sun stands ahead and to the right (backlit haze)
 
 
-def _material(name: str, colour: tuple[float, float, float], roughness: float = 0.8) -> bpy.types.Material:
+def material(name: str, colour: tuple[float, float, float], roughness: float = 0.8) -> bpy.types.Material:
     material = bpy.data.materials.new(name)
     material.use_nodes = True
     bsdf = material.node_tree.nodes["Principled BSDF"]
@@ -38,7 +38,7 @@ def _material(name: str, colour: tuple[float, float, float], roughness: float = 
     return material
 
 
-def _grid_object(name: str, xs: np.ndarray, ys: np.ndarray, heights: np.ndarray,
+def grid_object(name: str, xs: np.ndarray, ys: np.ndarray, heights: np.ndarray,
                  material: bpy.types.Material) -> bpy.types.Object:
     """A height-field mesh over the grid ``xs`` x ``ys`` (metres), heights[j, i] at (xs[i], ys[j])."""
     nx, ny = len(xs), len(ys)
@@ -66,8 +66,8 @@ def _ridge(index: int, distance_m: float, height_m: float, colour: tuple[float, 
                         + 0.05 * np.sin(17.0 * u + phases[2]))
     profile = np.sin(np.linspace(0.0, math.pi, len(ys))) ** 0.7  # rises from the valley floor and falls back
     heights = profile[:, None] * crest[None, :]
-    return _grid_object(f"Ridge {index + 1} ({distance_m / 1000:g} km)", xs, ys, heights,
-                        _material(f"Ridge {index + 1}", colour))
+    return grid_object(f"Ridge {index + 1} ({distance_m / 1000:g} km)", xs, ys, heights,
+                        material(f"Ridge {index + 1}", colour))
 
 
 def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
@@ -98,15 +98,15 @@ def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
         _ridge(index, distance, height, colour, rng, half_fov)
 
     # Valley floor (meadow) from the shore to the first ridge, and a calm lake in the foreground.
-    floor = _grid_object("Valley floor", np.linspace(-3000, 3000, 2), np.linspace(120, 2000, 2),
-                         np.zeros((2, 2)), _material("Meadow", (0.09, 0.14, 0.05), roughness=1.0))
+    floor = grid_object("Valley floor", np.linspace(-3000, 3000, 2), np.linspace(120, 2000, 2),
+                         np.zeros((2, 2)), material("Meadow", (0.09, 0.14, 0.05), roughness=1.0))
     floor.location.z = -0.5
-    lake = _grid_object("Lake", np.linspace(-400, 400, 2), np.linspace(-5, 120, 2), np.zeros((2, 2)),
-                        _material("Lake water", (0.02, 0.04, 0.05), roughness=0.05))
+    lake = grid_object("Lake", np.linspace(-400, 400, 2), np.linspace(-5, 120, 2), np.zeros((2, 2)),
+                        material("Lake water", (0.02, 0.04, 0.05), roughness=0.05))
     lake.location.z = -0.3
 
-    rock_material = _material("Rock", (0.25, 0.24, 0.22))
-    tree_material = _material("Pine", (0.03, 0.08, 0.03))
+    rock_material = material("Rock", (0.25, 0.24, 0.22))
+    tree_material = material("Pine", (0.03, 0.08, 0.03))
     for i, (x, y, size) in enumerate(((-9.0, 28.0, 1.6), (7.0, 45.0, 2.2), (14.0, 160.0, 6.0))):
         mesh = bpy.data.meshes.new(f"Rock {i + 1}")
         bm_verts = rng.normal(size=(40, 3))
@@ -129,16 +129,7 @@ def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
         tree.location = (x, y, 0.0)
         scene.collection.objects.link(tree)
 
-    sun_data = bpy.data.lights.new("Sun", type="SUN")
-    sun_data.energy = 4.0
-    sun_data.angle = math.radians(0.533)
-    sun = bpy.data.objects.new("Sun", sun_data)
-    # A sun lamp shines along its local -Z; rotate its +Z onto the direction to the sun
-    # (cos e sin A, cos e cos A, sin e) for elevation e and azimuth A clockwise from +Y.
-    elevation, azimuth = math.radians(SUN_ELEVATION_DEG), math.radians(SUN_AZIMUTH_DEG)
-    sun.rotation_euler = (math.pi / 2 - elevation, 0.0, math.pi - azimuth)
-    sun.location = (0.0, 0.0, 50.0)
-    scene.collection.objects.link(sun)
+    place_sun(scene, SUN_ELEVATION_DEG, SUN_AZIMUTH_DEG, strength=4.0)
 
     world = bpy.data.worlds.new("Valley sky")
     world.use_nodes = True
@@ -146,6 +137,23 @@ def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
     scene.world = world
     return scene
+
+
+def place_sun(scene: bpy.types.Scene, elevation_deg: float, azimuth_deg: float, strength: float) -> bpy.types.Object:
+    """Add a sun lamp whose +Z axis (a sun lamp shines along its -Z) points at the sun.
+
+    The direction to the sun is (cos e sin A, cos e cos A, sin e) for elevation e and azimuth A
+    clockwise from +Y (north).
+    """
+    sun_data = bpy.data.lights.new("Sun", type="SUN")
+    sun_data.energy = strength
+    sun_data.angle = math.radians(0.533)
+    sun = bpy.data.objects.new("Sun", sun_data)
+    elevation, azimuth = math.radians(elevation_deg), math.radians(azimuth_deg)
+    sun.rotation_euler = (math.pi / 2 - elevation, 0.0, math.pi - azimuth)
+    sun.location = (0.0, 0.0, 50.0)
+    scene.collection.objects.link(sun)
+    return sun
 
 
 def _convex_hull_mesh(mesh: bpy.types.Mesh, points: np.ndarray) -> None:

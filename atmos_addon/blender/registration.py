@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import operators, properties, sync, ui_panel
+from . import cli_command, operators, properties, sync, ui_panel
 
 CLASSES = (*properties.CLASSES, *operators.CLASSES, *ui_panel.CLASSES)
 
@@ -14,9 +14,11 @@ def register() -> None:
     for cls in CLASSES:
         bpy.utils.register_class(cls)
     sync.add_handlers()
+    cli_command.register()
 
 
 def unregister() -> None:
+    cli_command.unregister()
     sync.remove_handlers()
     for cls in reversed(CLASSES):
         bpy.utils.unregister_class(cls)
