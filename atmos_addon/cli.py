@@ -153,15 +153,21 @@ def _eevee_engine_id() -> str:
     return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in engines else "BLENDER_EEVEE"
 
 
-def _enable(scene, args: argparse.Namespace) -> None:
-    try:
+def _prepare_scene(args: argparse.Namespace, *, with_preset: bool = True):
+    """Open SCENE, check it has a camera, apply the render options, enable the effect; return the scene."""
+    scene = _open_scene(args.scene)
+    if scene.camera is None:
+        raise CliError(f"scene '{scene.name}' has no camera: add one or pick another scene")
+    _configure(scene, args)
+    if with_preset:
         report = api.enable(scene, preset=args.preset, sun_elevation_deg=args.sun_elevation,
                             sun_azimuth_deg=args.sun_azimuth)
-    except api.AtmosError as error:
-        raise CliError(str(error)) from error
+    else:
+        report = api.enable(scene)
     for line in report.messages:
         if line:
             _log(f"atmos: {line}")
+    return scene
 
 
 def _frame_path(output: Path, frame: int, several: bool) -> Path:
@@ -195,11 +201,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     exr = output.suffix.lower() == ".exr"
     if output.suffix.lower() not in {".png", ".exr"}:
         raise CliError(f"--output must end in .png or .exr (multilayer EXR with the atmosphere AOVs), got '{output.name}'")
-    scene = _open_scene(args.scene)
-    if scene.camera is None:
-        raise CliError(f"scene '{scene.name}' has no camera: add one or pick another scene")
-    _configure(scene, args)
-    _enable(scene, args)
+    scene = _prepare_scene(args)
     set_output_format(scene.render.image_settings, multilayer_exr=exr)
     start, end = args.frames or (scene.frame_current, scene.frame_current)
     output.parent.mkdir(parents=True, exist_ok=True)
@@ -228,11 +230,7 @@ def cmd_apply(args: argparse.Namespace) -> int:
     output = Path(args.output).resolve()
     if output.suffix.lower() != ".blend":
         raise CliError(f"--output must be a .blend file, got '{output.name}'")
-    scene = _open_scene(args.scene)
-    if scene.camera is None:
-        raise CliError(f"scene '{scene.name}' has no camera: add one or pick another scene")
-    _configure(scene, args)
-    _enable(scene, args)
+    _prepare_scene(args)
     output.parent.mkdir(parents=True, exist_ok=True)
     bpy.ops.wm.save_as_mainfile(filepath=str(output), copy=True, compress=True)
     print(output)
@@ -246,11 +244,7 @@ def cmd_contact_sheet(args: argparse.Namespace) -> int:
         raise CliError(f"--output must be a .png file, got '{output.name}'")
     for name in args.presets:
         api.load_preset(name)  # refuse an unknown or bad preset before opening the scene
-    scene = _open_scene(args.scene)
-    if scene.camera is None:
-        raise CliError(f"scene '{scene.name}' has no camera: add one or pick another scene")
-    _configure(scene, args)
-    api.enable(scene)
+    scene = _prepare_scene(args, with_preset=False)
     from .blender import contact_sheet
 
     total = len(args.presets) * len(args.elevations)

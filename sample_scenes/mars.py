@@ -16,7 +16,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from sample_scenes.valley import grid_object, material, place_sun
+from sample_scenes.valley import add_camera, grid_object, material, new_scene, place_sun
 
 CAMERA_HEIGHT_M = 1.7
 SUN_ELEVATION_DEG = 18.0
@@ -61,26 +61,9 @@ def _highlands() -> bpy.types.Object:
 
 def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
     """Replace the current file's contents with the Mars scene and return its scene."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    scene.name = "Mars"
-    scene.render.resolution_x, scene.render.resolution_y = resolution
-    scene.render.resolution_percentage = 100
-    scene.render.engine = "CYCLES"
-    scene.cycles.samples = 32
-    scene.cycles.use_denoising = False
-    scene.view_settings.view_transform = "Standard"
+    scene = new_scene("Mars", resolution)
     rng = np.random.default_rng(11)
-
-    camera_data = bpy.data.cameras.new("Camera")
-    camera_data.lens = 40.0
-    camera_data.clip_start = 0.1
-    camera_data.clip_end = 200_000.0
-    camera = bpy.data.objects.new("Camera", camera_data)
-    camera.location = (0.0, 0.0, CAMERA_HEIGHT_M + 6.0)  # standing on a dune crest
-    camera.rotation_euler = (math.radians(91.5), 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
+    add_camera(scene, lens_mm=40.0, height_m=CAMERA_HEIGHT_M + 6.0, pitch_deg=91.5)  # standing on a dune crest
 
     _dunes(rng)
     _crater(rng)

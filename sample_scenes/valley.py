@@ -70,28 +70,40 @@ def _ridge(index: int, distance_m: float, height_m: float, colour: tuple[float, 
                         material(f"Ridge {index + 1}", colour))
 
 
-def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
-    """Replace the current file's contents with the valley scene and return its scene."""
+def new_scene(name: str, resolution: tuple[int, int]) -> bpy.types.Scene:
+    """Empty the file and return its scene set up for the samples: Cycles, 32 samples, Standard view."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    scene.name = "Valley"
+    scene.name = name
     scene.render.resolution_x, scene.render.resolution_y = resolution
     scene.render.resolution_percentage = 100
     scene.render.engine = "CYCLES"
     scene.cycles.samples = 32
     scene.cycles.use_denoising = False
     scene.view_settings.view_transform = "Standard"
-    rng = np.random.default_rng(7)
+    return scene
 
+
+def add_camera(scene: bpy.types.Scene, lens_mm: float, height_m: float, pitch_deg: float) -> bpy.types.Object:
+    """The scene camera at (0, 0, height) looking along +Y, pitched ``pitch_deg`` from straight down."""
     camera_data = bpy.data.cameras.new("Camera")
-    camera_data.lens = 50.0
+    camera_data.lens = lens_mm
     camera_data.clip_start = 0.1
     camera_data.clip_end = 200_000.0
     camera = bpy.data.objects.new("Camera", camera_data)
-    camera.location = (0.0, 0.0, CAMERA_HEIGHT_M)
-    camera.rotation_euler = (math.radians(93.0), 0.0, 0.0)  # looking north, slightly up
+    camera.location = (0.0, 0.0, height_m)
+    camera.rotation_euler = (math.radians(pitch_deg), 0.0, 0.0)
     scene.collection.objects.link(camera)
     scene.camera = camera
+    return camera
+
+
+def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
+    """Replace the current file's contents with the valley scene and return its scene."""
+    scene = new_scene("Valley", resolution)
+    rng = np.random.default_rng(7)
+    camera = add_camera(scene, lens_mm=50.0, height_m=CAMERA_HEIGHT_M, pitch_deg=93.0)  # looking north, slightly up
+    camera_data = camera.data
     half_fov = camera_data.angle_x / 2
 
     for index, (distance, height, colour) in enumerate(RIDGES):
