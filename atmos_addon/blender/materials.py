@@ -233,6 +233,19 @@ def _stand_in():
     return tree
 
 
+def _place_last(nodes, x: float, y: float) -> None:
+    """Move the last node of ``nodes`` to (x, y) without an RNA update.
+
+    Blender 4.2-4.5 answer every node property write with a node-tree update that scans every tree in
+    the file, so a pass over N materials costs O(N^2); ``foreach_set`` writes the raw locations (the
+    other nodes get back the values just read) and skips that update. It saves a third of a 4.2 enable.
+    """
+    locations = [0.0] * (2 * len(nodes))
+    nodes.foreach_get("location", locations)
+    locations[-2:] = (x, y)
+    nodes.foreach_set("location", locations)
+
+
 def inject(material, surface_group) -> None:
     """Add the Atmos surface group node to one node-based, editable material (idempotent).
 
@@ -250,7 +263,7 @@ def inject(material, surface_group) -> None:
         y = max(node.location.y for node in nodes)
     opacity_socket, opacity_value, invert = _opacity(tree)
     node = nodes.new("ShaderNodeGroup")
-    node.location = (x, y)
+    _place_last(nodes, x, y)
     node.label = NODE_LABEL
     node[TAG] = 1
     node.node_tree = surface_group
@@ -282,6 +295,8 @@ def inject_scene(scene, aerial_group, *, only_new: bool = False) -> MaterialRepo
         report.managed.append(material.name)
         if not (only_new and is_injected(material)):
             todo.append(material)
+    if not todo and bpy.data.node_groups.get(SURFACE_GROUP) is None:
+        return report  # nothing to inject: no group with zero users left in the file
     surface_group = ensure_surface_group(aerial_group)
     target = _stand_in() if len(todo) > BULK_THRESHOLD else surface_group
     for material in todo:
@@ -315,7 +330,18 @@ def remove_all(materials) -> list[str]:
 
 
 def remove_surface_group() -> None:
-    """Delete the surface group once no material uses it."""
+    """Delete the surface group once no material uses it, and the aerial group inside it once nothing else does.
+
+    Enabling creates both groups, so disabling the last scene removes both: after the effect was on and
+    off again the file holds no Atmos data-block with zero users (orphans that would stay in the session
+    and in Orphan Data until the file is saved and reopened). A group with a fake user or another user
+    (a user's own material, the sky) stays.
+    """
     tree = bpy.data.node_groups.get(SURFACE_GROUP)
-    if tree is not None and tree.users == 0:
-        bpy.data.node_groups.remove(tree)
+    if tree is None or tree.users != 0:
+        return
+    inner = {node.node_tree for node in tree.nodes if node.bl_idname == "ShaderNodeGroup" and node.node_tree}
+    bpy.data.node_groups.remove(tree)
+    for group in inner:
+        if group.users == 0 and group.name.startswith(PREFIX):
+            bpy.data.node_groups.remove(group)

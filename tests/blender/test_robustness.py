@@ -1,0 +1,586 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Production robustness: save and reload, farm renders without the add-on, undo invariants, user edits,
+several scenes, many enable/disable cycles and bad input.
+
+Handlers in the ``bpy`` module: ``depsgraph_update_post`` fires headless when the depsgraph is
+evaluated, so the tests call ``bpy.context.view_layer.update()`` after a change (4.2 and 5.0 alike);
+``load_post`` fires on ``bpy.ops.wm.open_mainfile``.
+
+Undo cannot be driven headless: ``bpy.ops.ed.undo_push`` runs, but ``bpy.ops.ed.undo.poll()`` fails
+without a window (no screen), in 4.2 and 5.0. :func:`test_undo_or_its_invariants` therefore checks
+a real undo only where the poll passes; everywhere the invariants an undo step relies on are tested:
+enable then disable gives back every material's and the compositor's exact nodes and links, and
+leaves no Atmos data-block behind.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import textwrap
+import warnings
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+import atmos_addon
+from atmos_addon.blender import compositor, effect, materials, sync
+
+import render_utils
+
+IS_5 = bpy.app.version >= (5, 0, 0)
+PARAMETERS = ("atmos_beta_rayleigh", "atmos_beta_mie", "atmos_beta_mie_absorption", "atmos_mie_g",
+              "atmos_sun_direction", "atmos_sun_irradiance", "atmos_metres_per_unit")
+
+
+@pytest.fixture(autouse=True)
+def addon():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    atmos_addon.register()
+    yield
+    atmos_addon.unregister()
+
+
+# -- helpers -------------------------------------------------------------------------------------
+
+
+def _quiet(function, *args):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return function(*args)
+
+
+def _node_material(name: str):
+    material = bpy.data.materials.new(name)
+    _quiet(setattr, material, "use_nodes", True)
+    return material
+
+
+def user_material(name: str = "User"):
+    """Noise -> colour ramp -> Principled, plus a loose math node: a material with the user's own work."""
+    material = _node_material(name)
+    tree = material.node_tree
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    loose = tree.nodes.new("ShaderNodeMath")
+    loose.inputs[0].default_value = 0.25
+    tree.links.new(noise.outputs["Fac"], ramp.inputs["Fac"])
+    tree.links.new(ramp.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+    return material
+
+
+def emissive_material(name: str, radiance) -> bpy.types.Material:
+    material = _node_material(name)
+    tree = material.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    emission = tree.nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (*radiance, 1.0)
+    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return material
+
+
+def cutout_material(name: str) -> bpy.types.Material:
+    """Principled whose Alpha is driven by a texture: the injection links it to the group's Opacity."""
+    material = _node_material(name)
+    tree = material.node_tree
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    tree.links.new(noise.outputs["Fac"], tree.nodes["Principled BSDF"].inputs["Alpha"])
+    return material
+
+
+def mix_transparent_material(name: str) -> bpy.types.Material:
+    material = _node_material(name)
+    tree = material.node_tree
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = 0.3
+    transparent = tree.nodes.new("ShaderNodeBsdfTransparent")
+    tree.links.new(transparent.outputs[0], mix.inputs[1])
+    tree.links.new(tree.nodes["Principled BSDF"].outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return material
+
+
+def mesh_object(name: str, *mats, scene=None, location=(0.0, 0.0, 0.0), half_size: float = 0.5):
+    h = half_size
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([(-h, -h, 0), (h, -h, 0), (h, h, 0), (-h, h, 0)], [], [(0, 1, 2, 3)])
+    for material in mats:
+        mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = location
+    (scene or bpy.context.scene).collection.objects.link(obj)
+    return obj
+
+
+def sun_lamp(scene, name: str = "Sun", rotation=(math.radians(40.0), 0.0, math.radians(30.0))):
+    lamp = bpy.data.objects.new(name, bpy.data.lights.new(name, "SUN"))
+    lamp.rotation_euler = rotation
+    scene.collection.objects.link(lamp)
+    return lamp
+
+
+def camera_looking_north(scene, name: str = "Camera", fov=math.radians(20.0)):
+    """A camera at the origin looking along +Y with Z up."""
+    return render_utils.make_camera(scene, rotation_euler=(math.pi / 2.0, 0.0, 0.0), fov_rad=fov,
+                                    clip_start=0.1, clip_end=100_000.0)
+
+
+def world(scene, colour=(0.05, 0.1, 0.2)):
+    data = bpy.data.worlds.new("World")
+    _quiet(setattr, data, "use_nodes", True)
+    data.node_tree.nodes["Background"].inputs["Color"].default_value = (*colour, 1.0)
+    scene.world = data
+    return data
+
+
+def snapshot(tree) -> tuple:
+    """Nodes (name, type, location, input values) and links of a tree, for exact before/after comparisons."""
+    if tree is None:
+        return None
+    nodes = []
+    for node in tree.nodes:
+        values = tuple(
+            (s.identifier, tuple(s.default_value) if hasattr(s.default_value, "__len__") else s.default_value)
+            for s in node.inputs if hasattr(s, "default_value")
+        )
+        nodes.append((node.name, node.bl_idname, tuple(node.location), node.label, values))
+    links = sorted(
+        (l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier) for l in tree.links
+    )
+    return sorted(nodes), links
+
+
+def user_part(material) -> tuple:
+    """The material's snapshot without the Atmos-tagged nodes and their links."""
+    ours = {node.name for node in materials.atmos_nodes(material)}
+    nodes, links = snapshot(material.node_tree)
+    return ([n for n in nodes if n[0] not in ours],
+            [l for l in links if l[0] not in ours and l[2] not in ours])
+
+
+def compositor_state(scene) -> tuple:
+    if IS_5:
+        tree = scene.compositing_node_group
+        return (tree.name if tree else None, snapshot(tree), scene.render.use_compositing)
+    return (_quiet(getattr, scene, "use_nodes"), snapshot(scene.node_tree), scene.render.use_compositing)
+
+
+def user_compositor(scene):
+    """Render Layers -> Glare -> output: the user's own compositor graph."""
+    if IS_5:
+        tree = bpy.data.node_groups.new("User Compositor", "CompositorNodeTree")
+        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        output = tree.nodes.new("NodeGroupOutput")
+        scene.compositing_node_group = tree
+    else:
+        scene.use_nodes = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        output = tree.nodes.new("CompositorNodeComposite")
+    layers = tree.nodes.new("CompositorNodeRLayers")
+    glare = tree.nodes.new("CompositorNodeGlare")
+    tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
+    tree.links.new(glare.outputs["Image"], output.inputs[0])
+    return tree
+
+
+def parameters(scene) -> dict:
+    return {name: (tuple(scene[name]) if hasattr(scene[name], "__len__") else scene[name])
+            for name in PARAMETERS if name in scene}
+
+
+def orphan_groups() -> list[str]:
+    """Atmos node groups nothing uses (no users, no fake user): left behind, they would be saved with the file."""
+    return sorted(g.name for g in bpy.data.node_groups if g.name.startswith(materials.PREFIX) and g.users == 0)
+
+
+def lamp_direction(lamp) -> np.ndarray:
+    axis = np.array(lamp.matrix_world.to_3x3().col[2])
+    return axis / np.linalg.norm(axis)
+
+
+def small_scene():
+    """Camera, sun, world, three materials (plain, cut-out, mix-transparent) on four objects."""
+    scene = bpy.context.scene
+    camera_looking_north(scene)
+    sun = sun_lamp(scene)
+    world(scene)
+    mats = [user_material("User"), cutout_material("Leaf"), mix_transparent_material("Glass")]
+    for index, material in enumerate(mats):
+        mesh_object(f"Obj{index}", material, location=(index - 1.0, 10.0, 0.0))
+    mesh_object("TwoSlots", mats[0], mats[2], location=(0.0, 20.0, 0.0))
+    return scene, sun, mats
+
+
+# -- save and reopen -----------------------------------------------------------------------------
+
+
+def test_save_and_reopen_keeps_the_effect_and_load_post_resyncs(tmp_path: Path) -> None:
+    """Settings, injected materials, AOVs, compositor and parameters survive save + reopen; load_post
+    re-syncs (a stale sun direction in the file is corrected); the depsgraph handler follows the sun
+    after reload; disabling after reload still restores everything exactly."""
+    scene, sun, mats = small_scene()
+    scene.render.engine = "CYCLES"
+    user_compositor(scene)
+    before_materials = {m.name: snapshot(m.node_tree) for m in mats}
+    before_compositor = compositor_state(scene)
+    scene.atmos.mie_scattering_per_km = (0.05, 0.06, 0.07)
+    scene.atmos.distance_scale = 3.0
+    effect.enable_effect(scene)
+    settings = {name: tuple(getattr(scene.atmos, name)) if hasattr(getattr(scene.atmos, name), "__len__")
+                else getattr(scene.atmos, name)
+                for name in ("mie_scattering_per_km", "distance_scale", "rayleigh_scattering_per_km", "mie_g")}
+    injected = {m.name: snapshot(m.node_tree) for m in mats}
+    composited = compositor_state(scene)
+    params = parameters(scene)
+    assert set(params) == set(PARAMETERS)
+    scene["atmos_sun_direction"] = (1.0, 0.0, 0.0)  # stale on purpose: load_post must correct it
+    path = tmp_path / "saved.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    scene = bpy.context.scene
+    assert scene.atmos.enabled
+    for name, value in settings.items():
+        got = getattr(scene.atmos, name)
+        np.testing.assert_allclose(got, value, rtol=1e-7, err_msg=name)
+    for name, shot in injected.items():
+        material = bpy.data.materials[name]
+        assert snapshot(material.node_tree) == shot, name
+        (node,) = materials.atmos_nodes(material)
+        assert node.node_tree.name == materials.SURFACE_GROUP
+        aovs = {n.aov_name for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"}
+        assert aovs == {materials.AOV_TRANSMITTANCE, materials.AOV_INSCATTERING, materials.AOV_COVERAGE}
+    assert [a.name for a in scene.view_layers[0].aovs] == [n for n, _ in compositor.AOVS]
+    assert compositor_state(scene) == composited
+    assert compositor.STATE_KEY in scene
+    reloaded = parameters(scene)
+    np.testing.assert_allclose(reloaded["atmos_sun_direction"], params["atmos_sun_direction"], atol=1e-6,
+                               err_msg="load_post did not re-sync the sun direction")
+    for name in PARAMETERS:
+        np.testing.assert_allclose(reloaded[name], params[name], rtol=1e-6, err_msg=name)
+
+    sun = bpy.data.objects["Sun"]
+    sun.rotation_euler = (math.radians(75.0), 0.0, math.radians(-100.0))
+    bpy.context.view_layer.update()  # fires depsgraph_update_post headless
+    np.testing.assert_allclose(scene["atmos_sun_direction"], lamp_direction(sun), atol=1e-6)
+
+    effect.disable_effect(scene)
+    for name, shot in before_materials.items():
+        assert snapshot(bpy.data.materials[name].node_tree) == shot, name
+    assert compositor_state(scene) == before_compositor
+
+
+# -- farm: the saved file renders the same without the add-on ------------------------------------
+
+
+FARM_SCRIPT = textwrap.dedent("""
+    import json, sys
+    import bpy
+    import numpy as np
+    blend, out = sys.argv[1], sys.argv[2]
+    bpy.ops.wm.open_mainfile(filepath=blend)
+    scene = bpy.context.scene
+    assert not any(name.startswith("atmos_addon") for name in sys.modules), "the add-on was imported"
+    assert not hasattr(bpy.types.Scene, "atmos")
+    settings = scene.render.image_settings
+    scene.render.filepath = out + ".exr"
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(out + ".exr", check_existing=False)
+    width, height = image.size
+    pixels = np.empty(width * height * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    np.save(out + ".npy", pixels.reshape(height, width, 4)[::-1])
+    print(json.dumps({"addon_loaded": False}))
+""")
+
+
+def test_farm_render_without_the_addon_matches(tmp_path: Path) -> None:
+    """A file saved with the effect on renders the same in a fresh process that never imports atmos_addon
+    (empty HOME, no PYTHONPATH): Cycles, fixed seed, 16x16, max abs difference <= 1e-4."""
+    scene = bpy.context.scene
+    render_utils.set_engine(scene, "CYCLES", width=16, height=16)
+    scene.cycles.samples = 4
+    scene.cycles.seed = 7
+    camera_looking_north(scene)
+    sun_lamp(scene)
+    world(scene)
+    near = mesh_object("Near", emissive_material("Near", (0.2, 0.5, 0.8)), location=(-40.0, 500.0, 0.0),
+                       half_size=60.0)
+    near.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    far = mesh_object("Far", user_material("Far"), location=(800.0, 6000.0, 0.0), half_size=900.0)
+    far.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    effect.enable_effect(scene)
+    session = render_utils.render_to_array(scene)
+    scene.render.use_compositing = False
+    raw = render_utils.render_to_array(scene)
+    scene.render.use_compositing = True
+    assert np.max(np.abs(session - raw)) > 1e-2, "the effect changed nothing: the comparison would prove nothing"
+    assert np.all(np.isfinite(session))
+
+    blend = tmp_path / "farm.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    home = tmp_path / "home"
+    home.mkdir()
+    env = {key: value for key, value in os.environ.items() if not key.startswith(("PYTHON", "BLENDER_"))}
+    env["HOME"] = str(home)
+    script = tmp_path / "farm.py"
+    script.write_text(FARM_SCRIPT)
+    out = tmp_path / "farm"
+    result = subprocess.run([sys.executable, "-I", str(script), str(blend), str(out)], cwd=str(tmp_path),
+                            env=env, capture_output=True, text=True, timeout=180)
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    assert json.loads(result.stdout.strip().splitlines()[-1]) == {"addon_loaded": False}
+    farm = np.load(str(out) + ".npy")
+    difference = float(np.max(np.abs(farm - session)))
+    print(f"farm render: max abs difference {difference:.3g}")
+    assert difference <= 1e-4
+
+
+# -- undo and its invariants ---------------------------------------------------------------------
+
+
+def test_undo_or_its_invariants() -> None:
+    """Undo where it can be driven; always: enable -> disable restores every material's nodes and links
+    and the compositor exactly, and leaves no Atmos node group (no zero-user orphans) behind."""
+    scene, _, mats = small_scene()
+    scene.render.engine = "CYCLES"
+    user_compositor(scene)
+    groups_before = sorted(g.name for g in bpy.data.node_groups)
+    before = {m.name: snapshot(m.node_tree) for m in mats}
+    before_compositor = compositor_state(scene)
+    if bpy.ops.ed.undo.poll():  # with a window (not the headless bpy module)
+        bpy.ops.ed.undo_push(message="before Atmos")
+        effect.enable_effect(scene)
+        bpy.ops.ed.undo_push(message="Atmos enabled")
+        bpy.ops.ed.undo()
+        scene = bpy.context.scene
+        assert {m.name: snapshot(m.node_tree) for m in bpy.data.materials if m.name in before} == before
+        assert compositor_state(scene) == before_compositor
+    effect.enable_effect(scene)
+    assert all(materials.is_injected(m) for m in mats)
+    assert materials.SURFACE_GROUP in bpy.data.node_groups
+    effect.disable_effect(scene)
+    assert {m.name: snapshot(m.node_tree) for m in mats} == before
+    assert compositor_state(scene) == before_compositor
+    assert sorted(g.name for g in bpy.data.node_groups) == groups_before
+    assert orphan_groups() == []
+
+
+def test_renaming_or_deleting_sun_camera_world_gives_status_not_exception() -> None:
+    scene, sun, mats = small_scene()
+    effect.enable_effect(scene)
+    scene.atmos.sun_object = sun
+
+    sun.name = "Sol"
+    bpy.context.view_layer.update()
+    assert "'Sol'" in scene.atmos.status_sun
+    report = effect.refresh_effect(scene)
+    assert "'Sol'" in scene.atmos.status_sun and report.messages
+
+    lamp_data = sun.data
+    bpy.data.objects.remove(sun)
+    bpy.data.lights.remove(lamp_data)
+    bpy.context.view_layer.update()
+    assert "no sun lamp" in scene.atmos.status_sun.lower()
+    np.testing.assert_allclose(scene["atmos_sun_direction"], sync.DEFAULT_SUN_DIRECTION, atol=1e-6)
+
+    scene.camera.name = "Renamed Camera"
+    effect.refresh_effect(scene)
+    camera = scene.camera
+    bpy.data.objects.remove(camera)
+    assert scene.camera is None
+    bpy.context.view_layer.update()
+    report = effect.refresh_effect(scene)
+    assert report.messages and scene.atmos.status_materials
+
+    bpy.data.worlds.remove(scene.world)
+    bpy.context.view_layer.update()
+    report = effect.refresh_effect(scene)
+    sync.sync_scene(scene)
+    assert report.messages and scene.atmos.status_sun
+    assert all(materials.is_injected(m) for m in mats)
+    effect.disable_effect(scene)
+
+
+# -- user edits to managed materials -------------------------------------------------------------
+
+
+def test_user_edits_after_enabling_survive_refresh_and_disable() -> None:
+    scene, _, mats = small_scene()
+    material = mats[0]
+    effect.enable_effect(scene)
+    (ours,) = materials.atmos_nodes(material)
+    user_xs = [n.location.x + n.width for n in material.node_tree.nodes if n != ours]
+    assert ours.location.x > max(user_xs), "the Atmos node sits to the right of the user's nodes"
+
+    tree = material.node_tree
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.inputs["Strength"].default_value = 0.3
+    tree.links.new(tree.nodes["Noise Texture"].outputs["Fac"], bump.inputs["Height"])
+    tree.links.new(bump.outputs["Normal"], tree.nodes["Principled BSDF"].inputs["Normal"])
+    tree.nodes["Math"].inputs[0].default_value = 0.75
+    tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.123
+    tree.nodes["Noise Texture"].location = (-900.0, 120.0)
+    edited = user_part(material)
+
+    effect.refresh_effect(scene)
+    assert user_part(material) == edited
+    assert len(materials.atmos_nodes(material)) == 1
+
+    tree.nodes.remove(materials.atmos_nodes(material)[0])  # the user deletes our node: refresh puts it back
+    effect.refresh_effect(scene)
+    assert len(materials.atmos_nodes(material)) == 1 and user_part(material) == edited
+
+    copy = material.copy()  # a user duplicate carries our node; disable strips it too
+    mesh_object("Copy", copy)
+    effect.refresh_effect(scene)
+    assert len(materials.atmos_nodes(copy)) == 1
+
+    effect.disable_effect(scene)
+    assert snapshot(material.node_tree) == edited
+    assert materials.atmos_nodes(copy) == []
+
+
+# -- several scenes ------------------------------------------------------------------------------
+
+
+def test_scenes_keep_their_own_settings_and_shared_material_until_last_disable() -> None:
+    first = bpy.context.scene
+    first.name = "First"
+    second = bpy.data.scenes.new("Second")
+    shared = user_material("Shared")
+    only_first, only_second = user_material("OnlyFirst"), user_material("OnlySecond")
+    for scene, own in ((first, only_first), (second, only_second)):
+        camera = bpy.data.objects.new(f"Camera {scene.name}", bpy.data.cameras.new(f"Camera {scene.name}"))
+        scene.collection.objects.link(camera)
+        scene.camera = camera
+        mesh_object(f"Shared in {scene.name}", shared, scene=scene)
+        mesh_object(f"Own of {scene.name}", own, scene=scene)
+    second.atmos.mie_scattering_per_km = (0.2, 0.2, 0.2)
+    second.atmos.distance_scale = 10.0
+    sun_lamp(second, "Second Sun", rotation=(math.radians(80.0), 0.0, 0.0))
+
+    effect.enable_effect(first)
+    effect.enable_effect(second)
+    a, b = parameters(first), parameters(second)
+    assert a["atmos_metres_per_unit"] == pytest.approx(1.0) and b["atmos_metres_per_unit"] == pytest.approx(10.0)
+    assert not np.allclose(a["atmos_beta_mie"], b["atmos_beta_mie"])
+    assert not np.allclose(a["atmos_sun_direction"], b["atmos_sun_direction"])
+    first.atmos.distance_scale = 2.0  # a change in one scene leaves the other alone
+    assert parameters(first)["atmos_metres_per_unit"] == pytest.approx(2.0)
+    assert parameters(second) == b
+    assert first.atmos.mie_scattering_per_km[0] != pytest.approx(0.2)
+
+    effect.disable_effect(first)
+    assert materials.is_injected(shared), "the second scene still uses the shared material"
+    assert materials.is_injected(only_second)
+    assert not materials.is_injected(only_first)
+    assert parameters(first) == {} and parameters(second) == b
+    assert second.atmos.enabled and compositor.STATE_KEY in second
+    effect.disable_effect(second)
+    assert not any(materials.is_injected(m) for m in (shared, only_first, only_second))
+    assert orphan_groups() == []
+
+
+# -- many cycles ---------------------------------------------------------------------------------
+
+
+def _counts() -> dict:
+    data = bpy.data
+    return {
+        "node_groups": len(data.node_groups), "materials": len(data.materials), "images": len(data.images),
+        "worlds": len(data.worlds), "objects": len(data.objects), "meshes": len(data.meshes),
+        "lights": len(data.lights), "scenes": len(data.scenes),
+        "aovs": sum(len(layer.aovs) for layer in bpy.context.scene.view_layers),
+        "scene_keys": sorted(k for k in bpy.context.scene.keys() if k.startswith("atmos_")),
+        "nodes": sum(len(m.node_tree.nodes) for m in data.materials if m.node_tree),
+    }
+
+
+def test_hundred_enable_disable_cycles_leave_counts_unchanged() -> None:
+    scene, _, mats = small_scene()
+    scene.render.engine = "CYCLES"
+    start = _counts()
+    before = {m.name: snapshot(m.node_tree) for m in mats}
+    for _ in range(100):
+        effect.enable_effect(scene)
+        effect.disable_effect(scene)
+    assert _counts() == start
+    assert {m.name: snapshot(m.node_tree) for m in mats} == before
+
+
+# -- bad input -----------------------------------------------------------------------------------
+
+
+def _plane_pixel_scene(scale_length: float):
+    """An emissive plane 10 scene units in front of the camera filling the view; 8x8 Cycles."""
+    scene = bpy.context.scene
+    render_utils.set_engine(scene, "CYCLES", width=8, height=8)
+    scene.cycles.samples = 1
+    scene.unit_settings.scale_length = scale_length
+    camera_looking_north(scene)
+    sun_lamp(scene)
+    world(scene)
+    if hasattr(scene.atmos, "sky_enabled"):
+        scene.atmos.sky_enabled = False  # these tests are about distances; the sky's world shader costs 15 s a render
+    plane = mesh_object("Wall", emissive_material("Wall", (0.5, 0.5, 0.5)), location=(0.0, 10.0, 0.0),
+                        half_size=10.0)
+    plane.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    return scene
+
+
+@pytest.mark.parametrize("scale_length", [0.001, 1000.0])
+def test_extreme_unit_scale_gives_sensible_metres_and_a_finite_render(scale_length: float) -> None:
+    scene = _plane_pixel_scene(scale_length)
+    effect.enable_effect(scene)
+    assert sync.metres_per_unit(scene) == pytest.approx(scale_length)
+    assert scene["atmos_metres_per_unit"] == pytest.approx(scale_length)
+    pixels = render_utils.render_to_array(scene)
+    assert np.all(np.isfinite(pixels)) and np.all(pixels[..., :3] >= 0.0)
+    wall = pixels[4, 4, :3]
+    if scale_length < 1.0:  # 1 cm away: the atmosphere does nothing measurable
+        np.testing.assert_allclose(wall, 0.5, rtol=1e-4)
+    else:  # 10 km away: visibly changed by the atmosphere
+        assert np.max(np.abs(wall - 0.5)) > 0.02
+
+
+def test_one_pixel_render_with_the_effect() -> None:
+    scene = _plane_pixel_scene(1.0)
+    effect.enable_effect(scene)
+    scene.render.resolution_x = scene.render.resolution_y = 1
+    pixels = render_utils.render_to_array(scene)
+    assert pixels.shape[-1] == 4 and pixels.size >= 4
+    assert np.all(np.isfinite(pixels))
+
+
+def test_empty_scene_enables_with_a_clear_report() -> None:
+    scene = bpy.context.scene
+    assert len(scene.objects) == 0
+    report = effect.enable_effect(scene)
+    assert report.managed == [] and report.skipped == [] and report.objects_without_material == []
+    assert any(message.startswith("0 material(s)") for message in report.messages)
+    assert scene.atmos.status_sun
+    assert scene.atmos.status_materials == "0 material(s) with aerial perspective"
+    effect.disable_effect(scene)
+    assert compositor.STATE_KEY not in scene and len(scene.objects) == 0
+
+
+def test_no_camera_enable_effect_does_not_crash_and_the_api_refuses() -> None:
+    from atmos_addon import api
+
+    scene = bpy.context.scene
+    material = user_material()
+    mesh_object("A", material)
+    with pytest.raises(api.AtmosError, match="camera"):
+        api.enable(scene)
+    assert not scene.atmos.enabled and not materials.is_injected(material)
+    report = effect.enable_effect(scene)
+    assert report.managed == ["User"] and materials.is_injected(material)
+    effect.disable_effect(scene)
+    assert not materials.is_injected(material)

@@ -1,0 +1,148 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Scale benchmark of the Blender layer: enable, parameter sync, preset load and disable on big scenes.
+
+    ./run bench                                  # this venv's Blender, then writes docs/benchmarks.md
+    .venv/bpy-5.0.1/bin/python tools/bench.py --python-bin .venv/bpy-4.2.23/bin/python   # both versions
+
+Each Blender version runs in its own process (``tools/bench_scale.py``, which prints one JSON line); this
+script collects them, prints a table and writes ``docs/benchmarks.md`` with the command and the machine.
+Timings are Python wall time (``time.perf_counter``) of single calls in background mode; render time and
+the depsgraph evaluation that follows an edit in the interface are not included. Not a test: nothing fails.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+SCALE_SCRIPT = REPO_ROOT / "tools" / "bench_scale.py"
+DOC = REPO_ROOT / "docs" / "benchmarks.md"
+
+#: (key in the JSON, row label, target in ms or None).
+ROWS = (
+    ("build_s", "build the scene (not Atmos)", None),
+    ("enable_s", "enable", 1000.0),
+    ("sync_small_ms", "parameter change -> sync, {small} materials (ms per update)", 5.0),
+    ("sync_big_ms", "parameter change -> sync, {materials} materials (ms per update)", 5.0),
+    ("preset_ms", "preset load + apply_atmosphere, enabled ({materials} materials)", 20.0),
+    ("refresh_s", "refresh (nothing new)", None),
+    ("disable_s", "disable", None),
+)
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def run_one(python: str, args: argparse.Namespace) -> dict:
+    command = [python, str(SCALE_SCRIPT), "--materials", str(args.materials), "--objects", str(args.objects),
+               "--small", str(args.small), "--repeats", str(args.repeats)]
+    if args.profile:
+        command.append("--profile")
+    result = subprocess.run(command, cwd=str(REPO_ROOT), capture_output=True, text=True)
+    lines = [line for line in result.stdout.splitlines() if line.startswith("{")]
+    if not lines:
+        raise SystemExit(f"bench failed with {python}:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}")
+    if result.returncode != 0:  # Blender 4.2's bpy module may exit non-zero at interpreter shutdown
+        print(f"note: {python} exited with {result.returncode} after printing its results: "
+              f"{result.stderr.strip().splitlines()[-1:] or ''}", file=sys.stderr)
+    if args.profile:
+        print(result.stdout[: result.stdout.rfind("\n{")])
+    return json.loads(lines[-1])
+
+
+def _cell(key: str, value: float) -> str:
+    return f"{value * 1000.0:.0f} ms" if key.endswith("_s") else f"{value:.2f} ms"
+
+
+def markdown(results: list[dict], args: argparse.Namespace, command: str) -> str:
+    head = "| step | target | " + " | ".join(f"Blender {r['blender']}" for r in results) + " |"
+    lines = [head, "|---|---:|" + "---:|" * len(results)]
+    for key, label, target in ROWS:
+        label = label.format(materials=args.materials, small=args.small)
+        target_text = "" if target is None else (f"< {target:g} ms" if target < 100 else f"< {target / 1000:g} s")
+        lines.append(f"| {label} | {target_text} | " + " | ".join(_cell(key, r[key]) for r in results) + " |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--python-bin", action="append", default=[],
+                        help="a Python with the bpy module to bench (repeat for several; default: this one)")
+    parser.add_argument("--materials", type=int, default=5000)
+    parser.add_argument("--objects", type=int, default=20000)
+    parser.add_argument("--small", type=int, default=10, help="material count of the small sync scene")
+    parser.add_argument("--repeats", type=int, default=50, help="parameter changes timed per scene")
+    parser.add_argument("--profile", action="store_true", help="print a cProfile of enable (top 15)")
+    parser.add_argument("--no-write", action="store_true", help="print only; leave docs/benchmarks.md alone")
+    args = parser.parse_args(argv)
+    pythons = args.python_bin or [sys.executable]
+    load_before = " / ".join(f"{v:.1f}" for v in os.getloadavg())
+    results = []
+    for python in pythons:
+        print(f"== {python}", flush=True)
+        results.append(run_one(python, args))
+    command = "python tools/bench.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    table = markdown(results, args, command)
+    print(table)
+    if not args.no_write:
+        machine = (f"{os.cpu_count()} CPU cores (nproc), {cpu_model()}, {platform.system()} {platform.release()}, "
+                   f"Python {platform.python_version()}; load average before the run {load_before}")
+        DOC.write_text(DOC_TEMPLATE.format(command=command.strip(), machine=machine, table=table,
+                                           materials=args.materials, objects=args.objects, small=args.small,
+                                           repeats=args.repeats, notes=NOTES))
+        print(f"wrote {DOC.relative_to(REPO_ROOT)}")
+    return 0
+
+
+DOC_TEMPLATE = """# Benchmarks: Atmos at scale
+
+Measured with
+
+    {command}
+
+on {machine}. Each Blender version runs in its own process (`tools/bench_scale.py`); the numbers are
+Python wall time of one call in background mode (the `bpy` module), not render time.
+
+The scene: {objects} mesh objects sharing {materials} meshes, one node-based material each (Principled
+BSDF), a camera and a sun lamp. The sync rows time {repeats} writes of `scene.atmos.mie_scattering_per_km`
+(each write's `update=` callback syncs the shader parameters) and give the mean; the small scene has
+{small} materials and 40 objects.
+
+{table}
+
+{notes}
+"""
+
+NOTES = """## What the numbers say
+
+- **Parameter changes** cost the same with 10 or 5000 materials: a sync writes seven scene custom
+  properties (plus the sun lamp and the world's sky values) and never touches a material.
+- **Enable** is dominated by adding one group node per material. Blender 4.2-4.5 answer every node
+  edit with a node-tree update that scans every node tree in the file, so each material costs time in
+  proportion to the number of materials: O(N^2) overall. Profiled with cProfile (`--profile`), 95 % of
+  the 4.2 enable was in `materials.inject`, one third each in `nodes.new`, the `node.location` write
+  and the `node.node_tree` write. The location is now written with `nodes.foreach_set`, which skips
+  the update (4.2: 5.9 s -> 3.5 s for 5000 materials). The other two writes have no update-free form in
+  the Python API; 5.0 no longer scans on every edit and is linear.
+- **Disable** is one `nodes.remove` per material: the same per-edit scan in 4.2.
+- Enable also builds the sky group ("Atmos Sky", about 0.6 s of node layout in `node_groups/graph.py`).
+- The numbers move by up to 2x with other work on the machine (see the load average above): on a quiet
+  machine the 4.2 enable measured 3.5 s and the 5.0 enable 0.86 s before the sky group was added.
+"""
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

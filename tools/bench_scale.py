@@ -1,0 +1,118 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""One Blender version's scale measurements for ``tools/bench.py``: prints one JSON line (seconds / ms).
+
+    .venv/bpy-4.2.23/bin/python tools/bench_scale.py --materials 5000 --objects 20000 [--profile]
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import json
+import math
+import pstats
+import sys
+import time
+import warnings
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO_ROOT))
+
+import bpy  # noqa: E402
+
+import atmos_addon  # noqa: E402
+from atmos_addon import presets  # noqa: E402
+from atmos_addon.blender import effect, settings_io  # noqa: E402
+
+
+def build_scene(n_materials: int, n_objects: int):
+    """An empty file with a camera, a sun and ``n_objects`` triangles sharing ``n_materials`` meshes."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.rotation_euler = (math.radians(40.0), 0.0, 0.5)
+    scene.collection.objects.link(sun)
+    meshes = []
+    for index in range(n_materials):
+        material = bpy.data.materials.new(f"Material {index}")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            material.use_nodes = True
+        mesh = bpy.data.meshes.new(f"Mesh {index}")
+        mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+        mesh.materials.append(material)
+        meshes.append(mesh)
+    objects = scene.collection.objects
+    for index in range(n_objects):
+        objects.link(bpy.data.objects.new(f"Object {index}", meshes[index % n_materials]))
+    bpy.context.view_layer.update()
+    return scene
+
+
+def time_syncs(scene, repeats: int) -> float:
+    """Mean ms of one ``mie_scattering_per_km`` write (its update callback syncs the parameters)."""
+    settings = scene.atmos
+    base = tuple(settings.mie_scattering_per_km)
+    start = time.perf_counter()
+    for index in range(repeats):
+        scale = 1.0 + 0.01 * (index % 2 + 1)
+        settings.mie_scattering_per_km = tuple(v * scale for v in base)
+    elapsed = time.perf_counter() - start
+    settings.mie_scattering_per_km = base
+    return elapsed / repeats * 1000.0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--materials", type=int, default=5000)
+    parser.add_argument("--objects", type=int, default=20000)
+    parser.add_argument("--small", type=int, default=10)
+    parser.add_argument("--repeats", type=int, default=50)
+    parser.add_argument("--profile", action="store_true")
+    args = parser.parse_args()
+    atmos_addon.register()
+    results = {"blender": bpy.app.version_string}
+
+    scene = build_scene(args.small, args.small * 4)
+    effect.enable_effect(scene)
+    time_syncs(scene, 3)  # warm the caches
+    results["sync_small_ms"] = time_syncs(scene, args.repeats)
+    effect.disable_effect(scene)
+
+    start = time.perf_counter()
+    scene = build_scene(args.materials, args.objects)
+    results["build_s"] = time.perf_counter() - start
+    profile = cProfile.Profile() if args.profile else None
+    start = time.perf_counter()
+    if profile:
+        profile.enable()
+    effect.enable_effect(scene)
+    if profile:
+        profile.disable()
+    results["enable_s"] = time.perf_counter() - start
+    if profile:
+        pstats.Stats(profile, stream=sys.stdout).sort_stats("tottime").print_stats(15)
+    time_syncs(scene, 3)
+    results["sync_big_ms"] = time_syncs(scene, args.repeats)
+    preset_times = []
+    for name in ("overcast", "clear", "mars", "sunset"):
+        start = time.perf_counter()
+        settings_io.apply_atmosphere(scene, presets.load(name).atmosphere)
+        preset_times.append(time.perf_counter() - start)
+    results["preset_ms"] = sum(preset_times[1:]) / len(preset_times[1:]) * 1000.0  # the first loads the parser
+    start = time.perf_counter()
+    effect.refresh_effect(scene)
+    results["refresh_s"] = time.perf_counter() - start
+    start = time.perf_counter()
+    effect.disable_effect(scene)
+    results["disable_s"] = time.perf_counter() - start
+    atmos_addon.unregister()
+    print(json.dumps(results), flush=True)
+
+
+if __name__ == "__main__":
+    main()
