@@ -4,17 +4,28 @@
 ``atmos_addon`` imports this package (``import_sibling("node_groups")``) and hands it plain numbers;
 nothing here imports ``atmos_addon``. Modules: :mod:`.graph` (a builder that writes arithmetic as
 nodes), :mod:`.parameters` (the property names and their writer), :mod:`.aerial_perspective` (the
-"Atmos Aerial Perspective" group, Hoffman & Preetham 2002 eq. 19).
+"Atmos Aerial Perspective" group, Hoffman & Preetham 2002 eq. 19), :mod:`.dome` (the virtual sky dome both
+groups share), :mod:`.sky` (the "Atmos Sky" world group).
 """
 
 from .aerial_perspective import (GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING, OUTPUT_TRANSMITTANCE,
                                  AerialFeatures, build_aerial_perspective, describe_features,
                                  ensure_aerial_perspective_group, is_current, node_count)
 from .graph import GraphBuilder
-from .parameters import (PARAMETER_NAMES, clear_shader_parameters, keyframe_shader_parameters,
-                         read_shader_parameters, write_shader_parameters)
+from .parameters import (AERIAL_PARAMETER_NAMES, PARAMETER_NAMES, clear_shader_parameters,
+                         keyframe_shader_parameters, read_shader_parameters, write_shader_parameters)
+from .sky import (OUTPUT_RADIANCE, SKY_GROUP_NAME, SKY_GROUP_VERSION, SKY_NODE_COUNTS, SkyFeatures, build_sky,
+                  ensure_sky_group)
 
 __all__ = [
+    "AERIAL_PARAMETER_NAMES",
+    "OUTPUT_RADIANCE",
+    "SKY_GROUP_NAME",
+    "SKY_GROUP_VERSION",
+    "SKY_NODE_COUNTS",
+    "SkyFeatures",
+    "build_sky",
+    "ensure_sky_group",
     "GROUP_NAME",
     "NODE_GROUP_VERSION",
     "OUTPUT_INSCATTERING",

@@ -4,13 +4,17 @@
 Per colour channel, for a shading point at distance s (m) from the camera, seen along the unit view
 direction v, with the unit direction to the sun l and mu = v . l:
 
-    beta_ex = beta_R + beta_M + beta_M,abs                      extinction coefficient, 1/m
-    F_ex    = exp(-beta_ex s)                                   "Transmittance"
-    L_in    = (beta_R Phi_R(mu) + beta_M Phi_HG(mu, g)) E_sun s phi1(beta_ex s)      "Inscattering"
+    s_R, s_M = min(s, R_R(v)), min(s, R_M(v))                   per-species lengths clamped to the sky dome
+    tau     = beta_R s_R + (beta_M + beta_M,abs) s_M            optical depth
+    F_ex    = exp(-tau)                                         "Transmittance"
+    L_in    = (beta_R Phi_R(mu) s_R + beta_M Phi_HG(mu, g) s_M) E_sun phi1(tau)      "Inscattering"
     Phi_R   = 3 / (16 pi) (1 + mu^2)
     Phi_HG  = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^(3/2))       (normalised; g > 0 scatters forward)
     phi1(x) = (1 - exp(-x)) / x, or 1 - x/2 + x^2/6 for x < 1e-3 (no 0/0 at zero depth)
 
+which is eq. 19 when s is nearer than both domes. R_R, R_M are the virtual-dome distances of :mod:`.dome`
+(the very nodes the "Atmos Sky" world group evaluates), so a surface beyond the dome shows exactly the sky
+behind it and no surface is hazier than the sky ("seamless horizon"; ``physics.sky.aerial_distance_clamped``).
 s is Camera Data > View Distance times the ``atmos_metres_per_unit`` parameter; v is -(Geometry >
 Incoming). Mie absorption adds to extinction only. The other parameters are read from scene custom
 properties (see :mod:`.parameters`), so the tree depends only on which terms are present
@@ -30,12 +34,13 @@ from typing import Sequence
 import bpy
 
 from . import parameters
+from .dome import cos_theta_to_sun, dome_distances, sun_direction, view_direction
 from .graph import GraphBuilder, Socket
 
 #: Name of the node group in ``bpy.data.node_groups``.
 GROUP_NAME = "Atmos Aerial Perspective"
 #: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
-NODE_GROUP_VERSION = 1
+NODE_GROUP_VERSION = 2  # 2: lengths clamped to the virtual sky dome
 #: Optical depth below which phi1 uses its series (the physics core's ``SMALL_OPTICAL_DEPTH``).
 SMALL_OPTICAL_DEPTH = 1.0e-3
 #: Floor of the Henyey-Greenstein denominator base (the physics core's ``HG_DENOMINATOR_FLOOR``).
@@ -76,29 +81,22 @@ def distance_m(g: GraphBuilder) -> Socket:
     return g.mul(camera.outputs["View Distance"], metres_per_unit, label="s (m)")
 
 
-def cos_theta_to_sun(g: GraphBuilder) -> Socket:
-    """mu = v . l, the cosine between the view direction (camera to point) and the direction to the sun."""
-    geometry = g.node("ShaderNodeNewGeometry", label="Geometry")
-    # Normalised here too: keyframed directions interpolate component-wise, off the unit sphere.
-    sun_direction = g.normalize(g.attribute(parameters.SUN_DIRECTION, output="Vector"), label="l")
-    mu = g.neg(g.dot(geometry.outputs["Incoming"], sun_direction), label="mu")
-    return g.clamp(mu, -1.0, 1.0, label="mu clamped")
-
-
-def extinction_coefficient(g: GraphBuilder, features: AerialFeatures, beta_rayleigh: Socket,
-                           beta_mie: Socket | None) -> Socket:
-    """beta_ex = beta_R + beta_M + beta_M,abs, 1/m (only the terms the features keep)."""
-    beta_ex = beta_rayleigh
-    if features.mie:
-        beta_ex = g.add(beta_ex, beta_mie, label="beta_R + beta_M")
+def mie_extinction_coefficient(g: GraphBuilder, features: AerialFeatures, beta_mie: Socket | None) -> Socket | None:
+    """beta_M,ex = beta_M + beta_M,abs, 1/m (only the terms the features keep; None when neither is)."""
+    if features.mie and features.absorption:
+        return g.add(beta_mie, g.attribute(parameters.BETA_MIE_ABSORPTION), label="beta_M,ex")
     if features.absorption:
-        beta_ex = g.add(beta_ex, g.attribute(parameters.BETA_MIE_ABSORPTION), label="beta_ex")
-    return beta_ex
+        return g.attribute(parameters.BETA_MIE_ABSORPTION)
+    return beta_mie if features.mie else None
 
 
-def optical_depth(g: GraphBuilder, beta_ex: Socket, s: Socket) -> Socket:
-    """tau = beta_ex s per channel, dimensionless."""
-    return g.mul(beta_ex, s, label="tau = beta_ex s")
+def optical_depth(g: GraphBuilder, beta_rayleigh: Socket, beta_mie_ex: Socket | None, s_rayleigh: Socket,
+                  s_mie: Socket) -> Socket:
+    """tau = beta_R s_R + beta_M,ex s_M per channel, dimensionless."""
+    tau = g.scale(beta_rayleigh, s_rayleigh, label="beta_R s_R")
+    if beta_mie_ex is None:
+        return tau
+    return g.multiply_add(beta_mie_ex, s_mie, tau, label="tau")
 
 
 def transmittance(g: GraphBuilder, tau: Socket) -> Socket:
@@ -144,17 +142,26 @@ def phase_henyey_greenstein(g: GraphBuilder, mu: Socket, anisotropy: Socket) -> 
     return g.div(one_minus_g2, g.mul(base_to_three_halves, 4.0 * math.pi), label="Phi_HG")
 
 
-def inscattering(g: GraphBuilder, features: AerialFeatures, s: Socket, mu: Socket, beta_rayleigh: Socket,
-                 beta_mie: Socket | None, tau: Socket, f_ex: Socket) -> Socket:
-    """L_in = (beta_R Phi_R + beta_M Phi_HG) E_sun s phi1(beta_ex s) per channel (eq. 19, E_sun at the ground)."""
-    angular = g.mul(beta_rayleigh, phase_rayleigh(g, mu), label="beta_R Phi_R")
+def inscattering(g: GraphBuilder, features: AerialFeatures, s_rayleigh: Socket, s_mie: Socket, mu: Socket,
+                 beta_rayleigh: Socket, beta_mie: Socket | None, tau: Socket, f_ex: Socket) -> Socket:
+    """L_in = (beta_R Phi_R s_R + beta_M Phi_HG s_M) E_sun phi1(tau) per channel (eq. 19, E_sun at the ground)."""
+    scattered = g.scale(beta_rayleigh, g.mul(phase_rayleigh(g, mu), s_rayleigh), label="beta_R Phi_R s_R")
     if features.mie:
         anisotropy = g.attribute(parameters.MIE_G)
-        angular = g.add(angular, g.mul(beta_mie, phase_henyey_greenstein(g, mu, anisotropy)),
-                        label="beta_R Phi_R + beta_M Phi_HG")
+        mie = g.scale(g.mul(beta_mie, phase_henyey_greenstein(g, mu, anisotropy)), s_mie, label="beta_M Phi_HG s_M")
+        scattered = g.add(scattered, mie, label="beta_R Phi_R s_R + beta_M Phi_HG s_M")
     sun_irradiance = g.attribute(parameters.SUN_IRRADIANCE)
-    path = g.mul(one_minus_exp_over_x(g, tau, f_ex), s, label="s phi1")
-    return g.mul(g.mul(angular, sun_irradiance), path, label="L_in")
+    return g.mul(g.mul(scattered, sun_irradiance), one_minus_exp_over_x(g, tau, f_ex), label="L_in")
+
+
+def scattering_terms(g: GraphBuilder, features: AerialFeatures, s_rayleigh: Socket, s_mie: Socket, mu: Socket
+                     ) -> tuple[Socket, Socket]:
+    """(F_ex, L_in) for per-species lengths: the part the aerial group and the sky group share."""
+    beta_rayleigh = g.attribute(parameters.BETA_RAYLEIGH)
+    beta_mie = g.attribute(parameters.BETA_MIE) if features.mie else None
+    tau = optical_depth(g, beta_rayleigh, mie_extinction_coefficient(g, features, beta_mie), s_rayleigh, s_mie)
+    f_ex = transmittance(g, tau)
+    return f_ex, inscattering(g, features, s_rayleigh, s_mie, mu, beta_rayleigh, beta_mie, tau, f_ex)
 
 
 # -- the group ---------------------------------------------------------------------------------------
@@ -177,12 +184,11 @@ def build_aerial_perspective(tree: bpy.types.ShaderNodeTree, features: AerialFea
     _ensure_interface(tree)
     g = GraphBuilder(tree)
     s = distance_m(g)
-    mu = cos_theta_to_sun(g)
-    beta_rayleigh = g.attribute(parameters.BETA_RAYLEIGH)
-    beta_mie = g.attribute(parameters.BETA_MIE) if features.mie else None
-    tau = optical_depth(g, extinction_coefficient(g, features, beta_rayleigh, beta_mie), s)
-    f_ex = transmittance(g, tau)
-    l_in = inscattering(g, features, s, mu, beta_rayleigh, beta_mie, tau, f_ex)
+    view = view_direction(g)
+    r_rayleigh, r_mie = dome_distances(g, g.separate(view, label="v")[2])
+    s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
+    s_mie = g.min(s, r_mie, label="s_M = min(s, R_M)") if features.mie or features.absorption else None
+    f_ex, l_in = scattering_terms(g, features, s_rayleigh, s_mie, cos_theta_to_sun(g, view, sun_direction(g)))
     output = g.node("NodeGroupOutput", label="Group Output")
     tree.links.new(f_ex, output.inputs[OUTPUT_TRANSMITTANCE])
     tree.links.new(l_in, output.inputs[OUTPUT_INSCATTERING])
@@ -230,4 +236,4 @@ def describe_features(features: AerialFeatures) -> str:
 
 
 #: Nodes in the group per feature key for this :data:`NODE_GROUP_VERSION` (group output included).
-NODE_COUNTS = {"rayleigh": 50, "rayleigh+abs": 52, "rayleigh+mie": 79, "rayleigh+mie+abs": 81}
+NODE_COUNTS = {"rayleigh": 73, "rayleigh+abs": 76, "rayleigh+mie": 104, "rayleigh+mie+abs": 106}

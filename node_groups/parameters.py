@@ -11,7 +11,9 @@ A parameter that is missing reads as zero: the groups then pass the surface thro
 
 Three-float properties are read through the Attribute node's Color/Vector output, floats through Fac.
 Units: coefficients 1/m, irradiance W/m^2 (Blender sun strength), the sun direction a unit world-space
-vector pointing toward the sun, ``metres_per_unit`` metres per Blender scene unit.
+vector pointing toward the sun, ``metres_per_unit`` metres per Blender scene unit, planet radius and scale
+heights m (the virtual sky dome, shared by the aerial and sky groups), the sun's angular radius rad.
+:data:`AERIAL_PARAMETER_NAMES` are what the aerial group reads; the sky group reads every name.
 """
 
 from __future__ import annotations
@@ -35,10 +37,31 @@ SUN_DIRECTION = "atmos_sun_direction"
 SUN_IRRADIANCE = "atmos_sun_irradiance"
 #: Metres per scene unit (scene unit scale times the user's distance scale), a float.
 METRES_PER_UNIT = "atmos_metres_per_unit"
+#: Planet radius R_p, m (the virtual sky dome; the camera is taken on the ground).
+PLANET_RADIUS = "atmos_planet_radius"
+#: Scale heights (H_R, H_M, 0) of molecules and aerosols, m (the virtual sky dome).
+SCALE_HEIGHTS = "atmos_scale_heights"
+#: Angular radius of the sun's disk, rad (half the angular diameter).
+SUN_ANGULAR_RADIUS = "atmos_sun_angular_radius"
+#: Linear limb-darkening coefficient u of the sun's disk, I(mu) / I(1) = 1 - u (1 - mu); 0: a uniform disk.
+SUN_LIMB_DARKENING = "atmos_sun_limb_darkening"
+#: Albedo of the ground the sky shows below the horizon, per channel.
+GROUND_ALBEDO = "atmos_ground_albedo"
 
+#: The parameters of the aerial-perspective group.
+AERIAL_PARAMETER_NAMES = (BETA_RAYLEIGH, BETA_MIE, BETA_MIE_ABSORPTION, MIE_G, SUN_DIRECTION, SUN_IRRADIANCE,
+                          METRES_PER_UNIT, PLANET_RADIUS, SCALE_HEIGHTS)
 #: Every parameter name, in the order of :func:`write_shader_parameters`' arguments.
-PARAMETER_NAMES = (BETA_RAYLEIGH, BETA_MIE, BETA_MIE_ABSORPTION, MIE_G, SUN_DIRECTION, SUN_IRRADIANCE,
-                   METRES_PER_UNIT)
+PARAMETER_NAMES = (*AERIAL_PARAMETER_NAMES, SUN_ANGULAR_RADIUS, SUN_LIMB_DARKENING, GROUND_ALBEDO)
+
+#: Defaults of the dome and sun parameters: the physics core's default (Earth) ``Atmosphere`` and sun
+#: (``atmos_addon.physics``; a test checks they agree). Callers written before the sky existed get these.
+DEFAULT_PLANET_RADIUS_M = 6_360_000.0
+DEFAULT_RAYLEIGH_SCALE_HEIGHT_M = 8434.50888064715
+DEFAULT_MIE_SCALE_HEIGHT_M = 1200.0
+DEFAULT_SUN_ANGULAR_RADIUS_RAD = math.radians(0.2666)
+DEFAULT_SUN_LIMB_DARKENING = 0.6
+DEFAULT_GROUND_ALBEDO = (0.18, 0.2, 0.15)
 #: |g| is kept below this so the Henyey-Greenstein phase stays finite in float32.
 MAX_ABS_MIE_G = 0.999
 
@@ -67,12 +90,19 @@ def _nonnegative(name: str, value: Sequence[float] | float) -> tuple[float, floa
 def write_shader_parameters(scene: bpy.types.Scene, *, beta_rayleigh: Sequence[float], beta_mie: Sequence[float],
                             beta_mie_absorption: Sequence[float], mie_g: Sequence[float] | float,
                             sun_direction: Sequence[float], sun_irradiance: Sequence[float] | float,
-                            metres_per_unit: float) -> None:
-    """Store the aerial-perspective parameters as custom properties of ``scene`` (plain numbers in).
+                            metres_per_unit: float, planet_radius: float = DEFAULT_PLANET_RADIUS_M,
+                            rayleigh_scale_height: float = DEFAULT_RAYLEIGH_SCALE_HEIGHT_M,
+                            mie_scale_height: float = DEFAULT_MIE_SCALE_HEIGHT_M,
+                            sun_angular_radius: float = DEFAULT_SUN_ANGULAR_RADIUS_RAD,
+                            sun_limb_darkening: float = DEFAULT_SUN_LIMB_DARKENING,
+                            ground_albedo: Sequence[float] | float = DEFAULT_GROUND_ALBEDO) -> None:
+    """Store the aerial-perspective and sky parameters as custom properties of ``scene`` (plain numbers in).
 
-    ``sun_direction`` is normalised here; ``mie_g`` is clamped to +-:data:`MAX_ABS_MIE_G`. Raises
-    ValueError naming the parameter when a value is not finite, a coefficient is negative, the sun
-    direction has zero length or ``metres_per_unit`` is not > 0.
+    ``sun_direction`` is normalised here; ``mie_g`` is clamped to +-:data:`MAX_ABS_MIE_G`. Lengths are m,
+    the sun's angular radius rad (in (0, pi/2)), the limb darkening in [0, 1]. The keyword arguments with
+    defaults (Earth, the real sun) were added with the sky; older callers keep working. Raises ValueError
+    naming the parameter when a value is not finite, a coefficient is negative, the sun direction has zero
+    length, a length is not > 0 or an angle is out of range.
     """
     direction = _triple(SUN_DIRECTION, sun_direction)
     length = math.sqrt(sum(v * v for v in direction))
@@ -90,12 +120,35 @@ def write_shader_parameters(scene: bpy.types.Scene, *, beta_rayleigh: Sequence[f
         SUN_DIRECTION: tuple(v / length for v in direction),
         SUN_IRRADIANCE: _nonnegative(SUN_IRRADIANCE, sun_irradiance),
         METRES_PER_UNIT: metres,
+        PLANET_RADIUS: _positive(PLANET_RADIUS, planet_radius),
+        SCALE_HEIGHTS: (_positive(SCALE_HEIGHTS, rayleigh_scale_height), _positive(SCALE_HEIGHTS, mie_scale_height),
+                        0.0),
+        SUN_ANGULAR_RADIUS: _in_range(SUN_ANGULAR_RADIUS, sun_angular_radius, 0.0, 0.5 * math.pi, open_low=True),
+        SUN_LIMB_DARKENING: _in_range(SUN_LIMB_DARKENING, sun_limb_darkening, 0.0, 1.0),
+        GROUND_ALBEDO: _nonnegative(GROUND_ALBEDO, ground_albedo),
     }
     for name, value in values.items():
         # Assign only on change: a write re-tags the scene, and keyframed values must not be clobbered needlessly.
         if name not in scene or _as_tuple(scene[name]) != _as_tuple(value):
             scene[name] = value
     scene.update_tag()
+
+
+def _positive(name: str, value: float) -> float:
+    """A finite float > 0 (lengths)."""
+    number = float(value)
+    if not (math.isfinite(number) and number > 0.0):
+        raise ValueError(f"Atmos shader parameter {name}: expected a finite length > 0 (m); got {value!r}")
+    return number
+
+
+def _in_range(name: str, value: float, low: float, high: float, *, open_low: bool = False) -> float:
+    """A finite float in [low, high] (or (low, high] with ``open_low``)."""
+    number = float(value)
+    if not (math.isfinite(number) and (number > low if open_low else number >= low) and number <= high):
+        raise ValueError(f"Atmos shader parameter {name}: expected a number in {'(' if open_low else '['}{low:g}, "
+                         f"{high:g}]; got {value!r}")
+    return number
 
 
 def read_shader_parameters(scene: bpy.types.Scene) -> dict[str, tuple[float, ...] | float | None]:

@@ -4,7 +4,9 @@
 Enabling builds (or reuses) the aerial perspective shader group, injects its AOV outputs into
 every material the scene's objects use (:mod:`.materials`), declares the AOVs and inserts the
 combining node into the compositor (:mod:`.compositor`), and writes the shader parameters
-(:mod:`.sync`). Disabling removes exactly what enabling added. Both are idempotent.
+(:mod:`.sync`); with ``sky_enabled`` it inserts the "Atmos Sky" into the scene's world (:mod:`.world`); with
+``drive_sun_lamp`` it finds or creates the sun lamp and drives its colour and strength (:mod:`.sun_lamp`), and
+bakes an animated sun to keyframes. Disabling removes exactly what enabling added. Both are idempotent.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import compositor, materials, sync
+from . import compositor, materials, sun_lamp, sync, world
 
 _applying: set[str] = set()
 
@@ -86,7 +88,14 @@ def enable_effect(scene) -> Report:
     _set_enabled(scene, True)
     report = _apply_materials(scene, only_new=True)
     report.messages.extend(compositor.install(scene))
+    if scene.atmos.drive_sun_lamp:
+        _, lamp_message = sun_lamp.ensure_sun_lamp(scene)
+        report.messages.append(lamp_message)
     sync.sync_scene(scene)
+    if scene.atmos.sky_enabled:
+        report.messages.append(world.install_sky(scene, sync.ensure_sky_group(scene)))
+    if sun_lamp.bake_sun_animation(scene):
+        report.messages.append(f"Animated sun: baked to keyframes for frames {scene.frame_start}-{scene.frame_end}")
     report.messages.append(scene.atmos.status_sun)
     _status(scene, report)
     sync._last_counts[scene.name] = (len(bpy.data.materials), len(scene.objects))
@@ -96,6 +105,15 @@ def enable_effect(scene) -> Report:
 def refresh_effect(scene) -> Report:
     """Pick up materials and objects added since enabling, and re-sync (enables when off)."""
     return enable_effect(scene)
+
+
+def apply_sky_state(scene) -> None:
+    """The ``sky_enabled`` update callback (effect on): add or remove the sky in the scene's world."""
+    if scene.atmos.sky_enabled:
+        world.install_sky(scene, sync.ensure_sky_group(scene))
+        sync.sync_scene(scene)
+    else:
+        world.uninstall_sky(scene)
 
 
 def pick_up_new_materials(scene) -> None:
@@ -120,6 +138,8 @@ def disable_effect(scene) -> list[str]:
     stripped = materials.remove_all(candidates)
     materials.remove_surface_group()
     compositor.uninstall(scene)
+    world.uninstall_sky(scene)
+    sun_lamp.restore_lamp(scene)
     sync.node_groups().parameters.clear_shader_parameters(scene)
     settings = scene.atmos
     settings.status_materials = ""

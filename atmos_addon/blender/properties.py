@@ -14,6 +14,7 @@ import bpy
 from bpy.props import (
     BoolProperty,
     CollectionProperty,
+    EnumProperty,
     FloatProperty,
     FloatVectorProperty,
     PointerProperty,
@@ -42,6 +43,61 @@ def _on_parameter(self, context) -> None:
 
         if not settings_io.is_batched(scene):
             sync.sync_scene(scene)
+
+
+def _get_haze(self) -> float:
+    from . import simple_controls
+
+    return simple_controls.get_haze_visibility(self)
+
+
+def _set_haze(self, value: float) -> None:
+    from . import simple_controls
+
+    simple_controls.set_haze_visibility(self, value)
+
+
+def _get_air_density(self) -> float:
+    from . import simple_controls
+
+    return simple_controls.get_air_density(self)
+
+
+def _set_air_density(self, value: float) -> None:
+    from . import simple_controls
+
+    simple_controls.set_air_density(self, value)
+
+
+def _get_sun_elevation(self) -> float:
+    from . import sun_lamp
+
+    return sun_lamp.sun_angles(self.id_data)[0]
+
+
+def _set_sun_elevation(self, value: float) -> None:
+    from . import sun_lamp
+
+    sun_lamp.set_sun_angles(self.id_data, value, sun_lamp.sun_angles(self.id_data)[1])
+
+
+def _get_sun_azimuth(self) -> float:
+    from . import sun_lamp
+
+    return sun_lamp.sun_angles(self.id_data)[1]
+
+
+def _set_sun_azimuth(self, value: float) -> None:
+    from . import sun_lamp
+
+    sun_lamp.set_sun_angles(self.id_data, sun_lamp.sun_angles(self.id_data)[0], value)
+
+
+def _on_sky_enabled(self, context) -> None:
+    if self.enabled:
+        from . import effect
+
+        effect.apply_sky_state(self.id_data)
 
 
 def _poll_sun(self, obj) -> bool:
@@ -195,12 +251,128 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         soft_max=1000.0,
         update=_on_parameter,
     )
+    haze_visibility: FloatProperty(
+        name="Haze",
+        description=(
+            "Meteorological visibility: the distance at which a dark object fades to 2 % contrast against the "
+            "horizon, V = 3.912 / extinction at 550 nm (Koschmieder). Shorter is hazier. Writes grey Mie "
+            "scattering (and matching absorption) on top of the air's own Rayleigh extinction"
+        ),
+        min=1.0,
+        soft_min=100.0,
+        soft_max=400000.0,
+        subtype="DISTANCE",
+        unit="LENGTH",
+        get=_get_haze,
+        set=_set_haze,
+    )
+    air_density: FloatProperty(
+        name="Air Density",
+        description=(
+            "Density of the air molecules relative to standard sea-level air (1 = Earth): scales the Rayleigh "
+            "scattering that makes distance and sky blue, keeping its colour"
+        ),
+        min=0.0,
+        soft_max=10.0,
+        step=1,
+        precision=3,
+        get=_get_air_density,
+        set=_set_air_density,
+    )
+    preset_name: StringProperty(
+        name="Preset",
+        description="The atmosphere preset last applied to this scene (its values may have been edited since)",
+        default="",
+    )
     sun_object: PointerProperty(
         name="Sun",
         description="The sun lamp whose direction lights the atmosphere (empty: the first sun lamp in the scene)",
         type=bpy.types.Object,
         poll=_poll_sun,
         update=_on_parameter,
+    )
+    # -- sky and sun (see sun_lamp.py, world.py) --
+    sun_elevation: FloatProperty(
+        name="Sun Elevation",
+        description="Height of the sun above the horizon; rotates the sun lamp (always shows the lamp's angle)",
+        subtype="ANGLE",
+        min=-0.5 * 3.141592653589793,
+        max=0.5 * 3.141592653589793,
+        get=_get_sun_elevation,
+        set=_set_sun_elevation,
+    )
+    sun_azimuth: FloatProperty(
+        name="Sun Azimuth",
+        description="Compass direction of the sun, clockwise from north (+Y) toward east (+X); rotates the sun lamp",
+        subtype="ANGLE",
+        get=_get_sun_azimuth,
+        set=_set_sun_azimuth,
+    )
+    sun_angular_diameter: FloatProperty(
+        name="Sun Angular Diameter",
+        description="Apparent diameter of the sun's disk (0.53 degrees seen from the Earth): the sky's disk and "
+                    "the sun lamp's angle (shadow softness)",
+        subtype="ANGLE",
+        default=0.009306095571633765,  # 2 x 0.2666 deg = 0.5332 deg
+        min=1.0e-4,
+        max=0.5,
+        soft_max=0.2,
+        update=_on_parameter,
+    )
+    sun_limb_darkening: FloatProperty(
+        name="Limb Darkening",
+        description="How much darker the sun's disk is at its edge than at its centre (0: a uniform disk)",
+        default=0.6,
+        min=0.0,
+        max=1.0,
+        update=_on_parameter,
+    )
+    drive_sun_lamp: BoolProperty(
+        name="Drive Sun Lamp",
+        description="Set the sun lamp's colour, strength and angle from the sunlight that reaches the ground",
+        default=True,
+        update=_on_parameter,
+    )
+    sky_enabled: BoolProperty(
+        name="Sky",
+        description="Show the Atmos sky (same atmosphere and sun as the haze) in the scene's world",
+        default=True,
+        update=_on_sky_enabled,
+    )
+    sky_ground: EnumProperty(
+        name="Ground",
+        description="What the sky shows below the horizon",
+        items=(
+            ("ALBEDO", "Lit Ground", "A flat ground of the ground albedo lit by the sun, seen through the haze"),
+            ("BLACK", "Black", "A black ground: only the horizon's haze below the horizon"),
+        ),
+        default="ALBEDO",
+        update=_on_parameter,
+    )
+    ground_albedo: FloatVectorProperty(
+        name="Ground Albedo",
+        description="Colour (reflectance) of the distant ground the sky shows below the horizon",
+        subtype="COLOR",
+        size=3,
+        default=(0.18, 0.2, 0.15),
+        min=0.0,
+        max=1.0,
+        update=_on_parameter,
+    )
+    sun_colour_display: FloatVectorProperty(
+        name="Sunlight Colour",
+        description="Colour of the sunlight at the ground (read-only: set by Atmos from the atmosphere and the sun)",
+        subtype="COLOR",
+        size=3,
+        default=(1.0, 1.0, 1.0),
+        min=0.0,
+        soft_max=1.0,
+    )
+    sun_strength_display: FloatProperty(
+        name="Sunlight Strength",
+        description="Sunlight at the ground, W/m\u00b2 (read-only: set by Atmos from the atmosphere and the sun)",
+        default=0.0,
+        min=0.0,
     )
     status_built: StringProperty(name="Built", description="What the aerial perspective node group computes")
     status_sun: StringProperty(name="Sun", description="Where the sun direction comes from")

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import bpy
 
-from . import cli_command, operators, properties, sync, ui_panel
+from . import cli_command, contact_sheet, operators, preset_ops, properties, sun_lamp, sync, ui_panel
 
-CLASSES = (*properties.CLASSES, *operators.CLASSES, *ui_panel.CLASSES)
+CLASSES = (*properties.CLASSES, *operators.CLASSES, *preset_ops.CLASSES, *contact_sheet.CLASSES, *sun_lamp.CLASSES,
+           *ui_panel.CLASSES)
 
 
 def register() -> None:

@@ -98,9 +98,12 @@ def sync_scene(scene) -> None:
     atmosphere = atmosphere_from_settings(settings)
     direction, sun_status = sun_direction(scene)
     elevation_rad = math.asin(float(np.clip(direction[2], -1.0, 1.0)))
-    irradiance = np.asarray(sun_irradiance_ground(elevation_rad, atmosphere), dtype=float)
+    sun_radius = 0.5 * float(settings.sun_angular_diameter)
+    irradiance = np.asarray(sun_irradiance_ground(elevation_rad, atmosphere, 0.0, sun_radius), dtype=float)
     if settings.enabled:
         ensure_group(scene)  # cheap when current; rebuilds in place when the feature set changed
+        if settings.sky_enabled:
+            ensure_sky_group(scene)
     node_groups().parameters.write_shader_parameters(
         scene,
         beta_rayleigh=atmosphere.rayleigh_scattering,
@@ -110,10 +113,42 @@ def sync_scene(scene) -> None:
         sun_direction=direction,
         sun_irradiance=irradiance,
         metres_per_unit=metres_per_unit(scene),
+        planet_radius=atmosphere.planet_radius,
+        rayleigh_scale_height=atmosphere.rayleigh_scale_height,
+        mie_scale_height=atmosphere.mie_scale_height,
+        sun_angular_radius=sun_radius,
+        sun_limb_darkening=settings.sun_limb_darkening,
+        ground_albedo=tuple(settings.ground_albedo),
     )
     _set_if_changed(settings, "status_sun", sun_status)
     lamp = sun_object(scene)
+    _sync_sun_lamp(scene, lamp, elevation_rad)
     _last_sun_matrix[scene.name] = _matrix_key(lamp)
+
+
+def sky_features_from_settings(settings):
+    """The sky group's feature set: the aerial terms plus the ground mode."""
+    aerial = features_from_settings(settings)
+    return node_groups().sky.SkyFeatures(mie=aerial.mie, absorption=aerial.absorption, ground=settings.sky_ground)
+
+
+def ensure_sky_group(scene):
+    """Get or (re)build the "Atmos Sky" world group for the scene's feature set."""
+    return node_groups().sky.ensure_sky_group(sky_features_from_settings(scene.atmos))
+
+
+def _sync_sun_lamp(scene, lamp, elevation_rad: float) -> None:
+    """Show E_sun's colour and strength in the settings and, with ``drive_sun_lamp``, on the lamp (changes only)."""
+    from . import sun_lamp
+
+    settings = scene.atmos
+    colour, strength, angle = sun_lamp.lamp_values(scene, elevation_rad)
+    if sun_lamp._differs(tuple(settings.sun_colour_display), colour):
+        settings.sun_colour_display = colour
+    if sun_lamp._differs(settings.sun_strength_display, strength):
+        settings.sun_strength_display = strength
+    if lamp is not None and settings.enabled and settings.drive_sun_lamp:
+        sun_lamp.drive_lamp(scene, lamp, colour, strength, angle)
 
 
 def _matrix_key(lamp) -> tuple:

@@ -352,6 +352,7 @@ def _parity(engine: str, tolerance: float, tmp_path: Path) -> dict:
     scene, sun = _render_scene(engine)
     for name, radiance, distance, column, row in PLANES:
         _emissive_plane(name, radiance, distance, column, row)
+    scene.atmos.sky_enabled = False  # the user's plain world must pass through untouched (the sky: test_sky_sun)
     effect.enable_effect(scene)
     aovs = {}
     for label, rotation in (("high", (math.radians(30), 0, math.radians(40))), ("low", (math.radians(80), 0, 2.5))):

@@ -18,10 +18,12 @@ import numpy as np
 import pytest
 
 import render_utils as ru
-from atmos_addon.physics import Atmosphere, extinction, inscattering
-from node_groups import (GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING, OUTPUT_TRANSMITTANCE, PARAMETER_NAMES,
-                         AerialFeatures, clear_shader_parameters, describe_features, ensure_aerial_perspective_group,
-                         node_count, read_shader_parameters, write_shader_parameters)
+from atmos_addon.physics import Atmosphere, inscattering
+from atmos_addon.physics.sky import (aerial_distance_clamped, dome_distance_approx, elevation_of,
+                                     extinction_two_species, inscattering_two_species)
+from node_groups import (AERIAL_PARAMETER_NAMES, GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING,
+                         OUTPUT_TRANSMITTANCE, AerialFeatures, clear_shader_parameters, describe_features,
+                         ensure_aerial_perspective_group, node_count, read_shader_parameters, write_shader_parameters)
 from node_groups.aerial_perspective import NODE_COUNTS
 
 WIDTH, HEIGHT = 12, 8
@@ -120,8 +122,12 @@ def _expected(camera, metres_per_unit: float, sun_direction, atm: Atmosphere = A
     depth = np.repeat(np.array(DEPTHS_UNITS), WIDTH // 3)[np.newaxis, :]
     distance_m = depth / cos_to_axis * metres_per_unit
     mu = directions @ _unit(sun_direction)
-    transmittance = extinction(distance_m, atm, np.float32)
-    light = inscattering(distance_m, mu, atm, SUN_IRRADIANCE, np.float32)
+    # Lengths clamped to the virtual sky dome (float32 domes, as the nodes compute them): the 200 km plane
+    # lies beyond the dome above the horizon, the nearer planes do not.
+    s_r, s_m = aerial_distance_clamped(distance_m, elevation_of(directions), atm,
+                                       dome=lambda e, a, h: dome_distance_approx(e, a, h, np.float32))
+    transmittance = extinction_two_species(s_r, s_m, atm, np.float32)
+    light = inscattering_two_species(s_r, s_m, mu, atm, SUN_IRRADIANCE, np.float32)
     gain = (GAIN_NUMERATOR / depth)[..., np.newaxis]
     top = np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2
     return np.where(top, transmittance, light * gain)
@@ -243,7 +249,7 @@ def test_features_build_only_the_terms_needed():
     assert counts["rayleigh"] < counts["rayleigh+abs"] < counts["rayleigh+mie"] < counts["rayleigh+mie+abs"]
     assert "atmos_beta_mie" not in attributes["rayleigh+abs"] and "atmos_mie_g" not in attributes["rayleigh"]
     assert "atmos_beta_mie_absorption" not in attributes["rayleigh+mie"]
-    assert attributes["rayleigh+mie+abs"] == set(PARAMETER_NAMES)
+    assert attributes["rayleigh+mie+abs"] == set(AERIAL_PARAMETER_NAMES)
     full = NODE_COUNTS["rayleigh+mie+abs"]
     assert describe_features(AerialFeatures(True, True)) == f"Rayleigh + Mie + absorption: {full} nodes"
 

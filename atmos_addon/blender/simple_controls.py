@@ -1,0 +1,119 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Two artist controls that are views of the coefficients, not settings of their own: Haze and Air Density.
+
+* Haze is the meteorological visibility V = 3.912 / beta_ex(550 nm) (Koschmieder 1924: the distance
+  at which a black object keeps 2 % contrast against the horizon sky), with beta_ex the total
+  extinction beta_R + beta_M,sc + beta_M,abs at sea level. Setting it keeps the Rayleigh term and
+  gives the haze the rest, as grey Mie scattering with each channel's absorption-to-scattering
+  ratio kept (so soot stays soot, dust stays dust).
+* Air Density is the Rayleigh coefficient at 550 nm relative to standard sea-level air
+  (288.15 K, 101325 Pa; Bodhaine et al. 1999) at the same wavelengths. Setting it scales the
+  current Rayleigh coefficients, keeping their colour.
+
+Both are read and written through ``get``/``set`` of ``scene.atmos`` properties, so the coefficients
+stay the one source of truth and presets never need to know these controls exist.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..physics import rayleigh_coefficients
+
+#: -ln(0.02): the 2 % contrast threshold of Koschmieder's visibility.
+KOSCHMIEDER = 3.912
+#: Wavelength at which visibility is defined, nm.
+VISIBILITY_WAVELENGTH_NM = 550.0
+#: Visibility reported when the air does not attenuate at all, m (a finite stand-in for infinity).
+MAX_VISIBILITY_M = 1.0e9
+#: Absorption / scattering ratio given to haze that has none to copy (the clear default: albedo 0.91).
+DEFAULT_ABSORPTION_RATIO = 0.1
+
+
+def _at_550(settings, values) -> float:
+    """A per-channel value interpolated to 550 nm over the settings' channel wavelengths (clamped outside)."""
+    wavelengths = np.asarray(settings.wavelengths_nm, dtype=float)
+    order = np.argsort(wavelengths)
+    return float(np.interp(VISIBILITY_WAVELENGTH_NM, wavelengths[order], np.asarray(values, dtype=float)[order]))
+
+
+def extinction_550_per_m(settings) -> float:
+    """Sea-level extinction coefficient at 550 nm, 1/m (settings hold 1/km)."""
+    total = (np.asarray(settings.rayleigh_scattering_per_km, dtype=float)
+             + np.asarray(settings.mie_scattering_per_km, dtype=float)
+             + np.asarray(settings.mie_absorption_per_km, dtype=float))
+    return _at_550(settings, total) / 1000.0
+
+
+def visibility_m(settings) -> float:
+    """Koschmieder visibility V = 3.912 / beta_ex(550 nm), metres."""
+    beta = extinction_550_per_m(settings)
+    return MAX_VISIBILITY_M if beta <= KOSCHMIEDER / MAX_VISIBILITY_M else KOSCHMIEDER / beta
+
+
+def haze_coefficients(settings, visibility: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Grey Mie scattering and the matching absorption (1/km) that give ``visibility`` metres.
+
+    The haze's extinction at 550 nm is what the visibility needs beyond the Rayleigh term; it is
+    split as s (1 + a_550) with a_c = absorption_c / scattering_c kept per channel. A visibility
+    longer than clean air alone allows gives no haze at all.
+    """
+    rayleigh_550 = _at_550(settings, settings.rayleigh_scattering_per_km)
+    haze_550 = max(KOSCHMIEDER / max(visibility, 1e-9) * 1000.0 - rayleigh_550, 0.0)  # 1/km
+    scattering = np.asarray(settings.mie_scattering_per_km, dtype=float)
+    absorption = np.asarray(settings.mie_absorption_per_km, dtype=float)
+    if np.all(scattering <= 0.0):
+        ratio = np.full(3, DEFAULT_ABSORPTION_RATIO if np.all(absorption <= 0.0) else 0.0)
+    else:
+        fallback = float(np.sum(absorption) / max(np.sum(scattering), 1e-30))
+        ratio = np.where(scattering > 0.0, absorption / np.where(scattering > 0.0, scattering, 1.0), fallback)
+    grey = haze_550 / (1.0 + _at_550(settings, ratio))
+    return tuple([grey] * 3), tuple((grey * ratio).tolist())
+
+
+def standard_rayleigh_per_km(settings) -> np.ndarray:
+    """Rayleigh coefficients of standard sea-level air at the settings' wavelengths, 1/km."""
+    return rayleigh_coefficients(np.asarray(settings.wavelengths_nm, dtype=float)) * 1000.0
+
+
+def air_density(settings) -> float:
+    """Rayleigh scattering at 550 nm relative to standard sea-level air (1 = Earth, sea level)."""
+    standard = _at_550(settings, standard_rayleigh_per_km(settings))
+    return _at_550(settings, settings.rayleigh_scattering_per_km) / standard
+
+
+def rayleigh_for_density(settings, density: float) -> tuple[float, ...]:
+    """Rayleigh coefficients (1/km) for ``density`` times standard air, keeping the current colour."""
+    current = np.asarray(settings.rayleigh_scattering_per_km, dtype=float)
+    old = air_density(settings)
+    if old <= 0.0:
+        return tuple((standard_rayleigh_per_km(settings) * density).tolist())
+    return tuple((current * (density / old)).tolist())
+
+
+# ``get``/``set`` callbacks of the scene.atmos properties (one sync per write through settings_io.batch).
+
+
+def get_haze_visibility(settings) -> float:
+    return visibility_m(settings)
+
+
+def set_haze_visibility(settings, value: float) -> None:
+    from . import settings_io
+
+    scattering, absorption = haze_coefficients(settings, float(value))
+    with settings_io.batch(settings.id_data):
+        settings.mie_scattering_per_km = scattering
+        settings.mie_absorption_per_km = absorption
+
+
+def get_air_density(settings) -> float:
+    return air_density(settings)
+
+
+def set_air_density(settings, value: float) -> None:
+    from . import settings_io
+
+    rayleigh = rayleigh_for_density(settings, max(float(value), 0.0))
+    with settings_io.batch(settings.id_data):
+        settings.rayleigh_scattering_per_km = rayleigh

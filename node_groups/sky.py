@@ -1,0 +1,172 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The "Atmos Sky" world node group: the virtual-dome sky, the sun's disk and the ground, as nodes.
+
+Per view direction v (-(Geometry > Incoming) in the world shader: the camera ray's direction), per channel,
+for a camera on the ground (Hoffman & Preetham 2002, GDC slides "Virtual sky dome"; the numpy reference
+is ``atmos_addon.physics.sky.sky_radiance`` with ``dome=dome_distance_approx``):
+
+    R_R, R_M = dome distances of :mod:`.dome` (elevation clamped at the horizon)
+    tau      = beta_R R_R + (beta_M + beta_M,abs) R_M
+    L_sky    = (beta_R Phi_R(mu) R_R + beta_M Phi_HG(mu, g) R_M) E_sun phi1(tau)          mu = v . l
+    L_ground = albedo E_sun max(l_z, 0) / pi exp(-tau)            below the horizon (v_z < 0), ground "ALBEDO"
+    L_disk   = E_sun / Omega  (1 - u (1 - mu_e)) / (1 - u / 3)     inside the disk, above the horizon,
+               Omega = 4 pi sin^2(r / 2),  mu_e = sqrt(1 - (sin t / sin r)^2),  sin t = |v x l|
+
+E_sun is the sun's irradiance at the ground (the aerial group's parameter): the sky, the haze in front of
+surfaces and the sun lamp share it. The disk (angular radius r, linear limb darkening u, 0 for a uniform
+disk; its mean over the disk is 1 - u/3 for a small disk) integrates to E_sun; it is shown to camera rays
+only, because the sun lamp (angle = the disk's diameter, strength and colour from the same E_sun) already
+lights diffuse and glossy surfaces: the disk on other rays would count the sun twice. Every term uses the
+scene-property parameters of :mod:`.parameters`; the tree depends only on :class:`SkyFeatures`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import bpy
+
+from . import parameters
+from .aerial_perspective import AerialFeatures, scattering_terms
+from .dome import cos_theta_to_sun, dome_distances, sun_direction, view_direction
+from .graph import GraphBuilder, Socket
+
+#: Name of the world node group in ``bpy.data.node_groups``.
+SKY_GROUP_NAME = "Atmos Sky"
+#: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
+SKY_GROUP_VERSION = 1
+OUTPUT_RADIANCE = "Radiance"
+GROUND_MODES = ("ALBEDO", "BLACK")
+_VERSION_KEY = "atmos_version"
+_FEATURES_KEY = "atmos_features"
+
+
+@dataclass(frozen=True)
+class SkyFeatures:
+    """Which optional terms the sky contains: Mie scattering, Mie absorption, the lit ground below the horizon.
+
+    ``ground`` is "ALBEDO" (a Lambertian ground lit by the sun, seen through the horizon's haze) or "BLACK"
+    (only the horizon's haze below the horizon: ``sky_radiance`` with albedo 0).
+    """
+
+    mie: bool = True
+    absorption: bool = True
+    ground: str = "ALBEDO"
+
+    def __post_init__(self) -> None:
+        if self.ground not in GROUND_MODES:
+            raise ValueError(f"SkyFeatures.ground must be one of {GROUND_MODES}; got {self.ground!r}")
+
+    @property
+    def aerial(self) -> AerialFeatures:
+        """The scattering terms, as the aerial group names them."""
+        return AerialFeatures(mie=self.mie, absorption=self.absorption)
+
+    @property
+    def key(self) -> str:
+        """A stable short name stamped on the tree, e.g. "rayleigh+mie+abs+ground"."""
+        return self.aerial.key + ("+ground" if self.ground == "ALBEDO" else "")
+
+
+# -- the quantities ------------------------------------------------------------------------------------
+
+
+def _math(g: GraphBuilder, operation: str, *operands, label: str = "") -> Socket:
+    """A scalar Math node the builder has no named helper for (SINE, GREATER_THAN)."""
+    return g._math(operation, *operands, label=label)
+
+
+def sun_disk(g: GraphBuilder, view: Socket, view_z: Socket, sun: Socket, mu: Socket) -> Socket:
+    """L_disk per channel: E_sun / Omega times the limb darkening, inside the disk, above the horizon, camera rays.
+
+    The offset from the disk centre uses sin t = |v x l| (1 - mu^2 loses all precision for t ~ 0.005 rad in
+    float32). Inside: sin t < sin r and mu > 0.
+    """
+    radius = g.attribute(parameters.SUN_ANGULAR_RADIUS, output="Fac", label="r")
+    sin_r = _math(g, "SINE", radius, label="sin r")
+    cross = g._vector_math("CROSS_PRODUCT", view, sun, label="v x l")
+    length = g.node("ShaderNodeVectorMath", operation="LENGTH", label="sin t")
+    g._feed(length, length.inputs[0], cross)
+    sin_t = length.outputs["Value"]
+    inside = g.mul(g.less_than(sin_t, sin_r), _math(g, "GREATER_THAN", mu, 0.0), label="in disk")
+    above = _math(g, "GREATER_THAN", view_z, 0.0, label="above horizon")
+    camera = g.node("ShaderNodeLightPath", label="Light Path").outputs["Is Camera Ray"]
+    mask = g.mul(g.mul(inside, above), camera, label="disk mask")
+    sin_half = _math(g, "SINE", g.mul(radius, 0.5), label="sin(r/2)")
+    solid_angle = g.mul(g.mul(sin_half, sin_half), 4.0 * math.pi, label="Omega")
+    rho = g.div(sin_t, g.max(sin_r, 1.0e-9), label="sin t / sin r")
+    mu_e = g.sqrt(g.max(g.sub(1.0, g.mul(rho, rho)), 0.0), label="mu_e")
+    u = g.attribute(parameters.SUN_LIMB_DARKENING, output="Fac", label="u")
+    darkening = g.multiply_add(u, g.sub(mu_e, 1.0), 1.0, label="1 - u (1 - mu_e)")
+    mean = g.multiply_add(u, -1.0 / 3.0, 1.0, label="1 - u/3")
+    profile = g.div(g.mul(darkening, mask), g.mul(mean, g.max(solid_angle, 1.0e-30)), label="disk / Omega")
+    return g.scale(g.attribute(parameters.SUN_IRRADIANCE), profile, label="L_disk")
+
+
+def ground(g: GraphBuilder, view_z: Socket, sun_z: Socket, f_ex: Socket) -> Socket:
+    """L_ground exp(-tau) below the horizon: albedo E_sun max(l_z, 0) / pi seen through the horizon's haze."""
+    lit = g.mul(g.max(sun_z, 0.0), 1.0 / math.pi, label="max(l_z, 0) / pi")
+    radiance = g.scale(g.mul(g.attribute(parameters.GROUND_ALBEDO), g.attribute(parameters.SUN_IRRADIANCE)), lit,
+                       label="L_ground")
+    below = g.less_than(view_z, 0.0, label="below horizon")
+    return g.scale(g.mul(radiance, f_ex), below, label="L_ground F_ex")
+
+
+# -- the group ---------------------------------------------------------------------------------------
+
+
+def _ensure_interface(tree: bpy.types.ShaderNodeTree) -> None:
+    """Add the Radiance output if missing (an existing socket, and the links to it, are kept)."""
+    present = {item.name for item in tree.interface.items_tree
+               if item.item_type == "SOCKET" and item.in_out == "OUTPUT"}
+    if OUTPUT_RADIANCE not in present:
+        socket = tree.interface.new_socket(OUTPUT_RADIANCE, in_out="OUTPUT", socket_type="NodeSocketColor")
+        socket.description = "Sky radiance along the view ray (sky, sun disk, ground): feed a Background shader"
+
+
+def build_sky(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
+    """Clear ``tree``'s nodes and build the sky graph for ``features`` (interface kept)."""
+    tree.nodes.clear()
+    _ensure_interface(tree)
+    g = GraphBuilder(tree)
+    view = view_direction(g)
+    _, _, view_z = g.separate(view, label="v")
+    r_rayleigh, r_mie = dome_distances(g, view_z)
+    sun = sun_direction(g)
+    mu = cos_theta_to_sun(g, view, sun)
+    f_ex, radiance = scattering_terms(g, features.aerial, r_rayleigh, r_mie, mu)
+    radiance = g.add(radiance, sun_disk(g, view, view_z, sun, mu), label="sky + disk")
+    if features.ground == "ALBEDO":
+        _, _, sun_z = g.separate(sun, label="l")
+        radiance = g.add(radiance, ground(g, view_z, sun_z, f_ex), label="sky + disk + ground")
+    output = g.node("NodeGroupOutput", label="Group Output")
+    tree.links.new(radiance, output.inputs[OUTPUT_RADIANCE])
+    g.set_depth(output, g.max_depth + 1)
+    g.layout()
+    tree[_VERSION_KEY] = SKY_GROUP_VERSION
+    tree[_FEATURES_KEY] = features.key
+
+
+def is_current(tree: bpy.types.NodeTree, features: SkyFeatures) -> bool:
+    """True if ``tree`` was built by this version for ``features``."""
+    return tree.get(_VERSION_KEY) == SKY_GROUP_VERSION and tree.get(_FEATURES_KEY) == features.key
+
+
+def ensure_sky_group(features: SkyFeatures = SkyFeatures()) -> bpy.types.ShaderNodeTree:
+    """Get or create the "Atmos Sky" group, rebuilt in place only if stale (worlds keep their links)."""
+    tree = bpy.data.node_groups.get(SKY_GROUP_NAME)
+    if tree is None:
+        tree = bpy.data.node_groups.new(SKY_GROUP_NAME, "ShaderNodeTree")
+    elif tree.bl_idname != "ShaderNodeTree":
+        raise TypeError(f'Node group "{SKY_GROUP_NAME}" exists but is a {tree.bl_idname}, not a shader node group; '
+                        f"rename or delete it, then apply Atmos again")
+    if not is_current(tree, features):
+        build_sky(tree, features)
+    return tree
+
+
+#: Nodes in the sky group per feature key for this :data:`SKY_GROUP_VERSION` (group output included).
+SKY_NODE_COUNTS = {"rayleigh": 101, "rayleigh+ground": 112, "rayleigh+abs": 103, "rayleigh+abs+ground": 114,
+                   "rayleigh+mie": 131, "rayleigh+mie+ground": 142, "rayleigh+mie+abs": 133,
+                   "rayleigh+mie+abs+ground": 144}

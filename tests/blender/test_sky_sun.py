@@ -1,0 +1,402 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The "Atmos Sky" world group and the sun lamp: parity with the physics core, seamless horizon, farm safety.
+
+Sky pixels are one sample at the pixel centre of a camera on the ground, so the expected value is
+``physics.sky.sky_radiance(dome=dome_distance_approx)`` (float32) for that ray. Cycles is held to 0.5 %,
+Eevee to 1.5 %, relative to max(|expected|, 1e-4). Pixels within 1.5 degrees of the sun (its disk) are left out.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+import atmos_addon
+import render_utils as ru
+from atmos_addon.blender import effect, sun_lamp, sync, world
+from atmos_addon.physics import Atmosphere, sun_color_and_strength, sun_irradiance_ground
+from atmos_addon.physics.sky import (CHAPMAN_APPROX_P, SUN_LIMB_DARKENING, aerial_distance_clamped,
+                                     dome_distance_approx, elevation_of, inscattering_two_species, sky_radiance)
+from atmos_addon.physics.sun import SUN_ANGULAR_RADIUS_RAD
+from node_groups import (OUTPUT_INSCATTERING, OUTPUT_RADIANCE, SKY_NODE_COUNTS, AerialFeatures, SkyFeatures,
+                         ensure_aerial_perspective_group, ensure_sky_group, parameters, write_shader_parameters)
+from node_groups.dome import CHAPMAN_APPROX_P as NODE_CHAPMAN_P
+
+ATMOSPHERE = Atmosphere()
+ALBEDO = (0.18, 0.2, 0.15)
+TOLERANCE = {"CYCLES": 5e-3, ru.EEVEE_ENGINE: 1.5e-2}
+RELATIVE_FLOOR = 1e-4
+ERRORS: dict[str, float] = {}
+IS_5 = bpy.app.version >= (5, 0, 0)
+
+
+def _use_nodes(idblock) -> None:
+    if not IS_5:
+        idblock.use_nodes = True
+
+
+def _sun(elevation_deg: float, azimuth_deg: float) -> np.ndarray:
+    e, a = math.radians(elevation_deg), math.radians(azimuth_deg)
+    return np.array([math.cos(e) * math.sin(a), math.cos(e) * math.cos(a), math.sin(e)])
+
+
+def _write(scene, sun: np.ndarray, metres_per_unit: float = 1.0) -> np.ndarray:
+    """Shader parameters for the default atmosphere and ``sun``; returns E_sun."""
+    e_sun = sun_irradiance_ground(math.asin(sun[2]), ATMOSPHERE)
+    write_shader_parameters(scene, beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
+                            beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
+                            sun_irradiance=e_sun, metres_per_unit=metres_per_unit, ground_albedo=ALBEDO)
+    return e_sun
+
+
+def _sky_world(scene, features: SkyFeatures = SkyFeatures()) -> bpy.types.World:
+    sky_world = bpy.data.worlds.new("Sky")
+    _use_nodes(sky_world)
+    scene.world = sky_world
+    tree = sky_world.node_tree
+    group = tree.nodes.new("ShaderNodeGroup")
+    group.node_tree = ensure_sky_group(features)
+    tree.links.new(group.outputs[OUTPUT_RADIANCE], tree.nodes["Background"].inputs["Color"])
+    sky_world.cycles.sampling_method = "NONE"  # camera rays only here: skip building the importance map
+    return sky_world
+
+
+def _relative_error(image: np.ndarray, expected: np.ndarray) -> np.ndarray:
+    return np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
+
+
+def _luminance(rgb: np.ndarray) -> np.ndarray:
+    return rgb @ np.array([0.2126, 0.7152, 0.0722])
+
+
+# -- the group -----------------------------------------------------------------------------------
+
+
+def test_sky_group_counts_constants_and_defaults():
+    ru.reset_scene()
+    for mie in (False, True):
+        for absorption in (False, True):
+            for ground in ("ALBEDO", "BLACK"):
+                features = SkyFeatures(mie, absorption, ground)
+                assert len(ensure_sky_group(features).nodes) == SKY_NODE_COUNTS[features.key]
+    assert len(bpy.data.node_groups) == 1
+    assert NODE_CHAPMAN_P == CHAPMAN_APPROX_P
+    assert parameters.DEFAULT_PLANET_RADIUS_M == ATMOSPHERE.planet_radius
+    assert parameters.DEFAULT_RAYLEIGH_SCALE_HEIGHT_M == pytest.approx(ATMOSPHERE.rayleigh_scale_height, rel=1e-12)
+    assert parameters.DEFAULT_MIE_SCALE_HEIGHT_M == ATMOSPHERE.mie_scale_height
+    assert parameters.DEFAULT_SUN_ANGULAR_RADIUS_RAD == pytest.approx(SUN_ANGULAR_RADIUS_RAD)
+    assert parameters.DEFAULT_SUN_LIMB_DARKENING == SUN_LIMB_DARKENING
+    # The aerial group reads the same dome: the same labelled nodes in both trees.
+    aerial = ensure_aerial_perspective_group(AerialFeatures())
+    sky = ensure_sky_group(SkyFeatures())
+    dome_labels = ("x = R_p / H", "c^2 = pi x / 2", "c mu", "(1 - p) c mu", "p c mu + sqrt", "Ch", "R = H Ch")
+    for tree in (aerial, sky):
+        assert all(any(n.label == label for n in tree.nodes) for label in dome_labels), tree.name
+
+
+def _sky_scene(engine: str):
+    """A ground camera looking north-east 12 degrees up (wide), and a small one looking at the zenith."""
+    scene = ru.reset_scene()
+    zenith = ru.make_camera(scene, rotation_euler=(0.0, 0.0, 0.0), fov_rad=math.radians(30.0))
+    zenith.name = "Zenith"
+    horizon = ru.make_camera(scene, rotation_euler=(math.radians(102.0), 0.0, math.radians(-20.0)),
+                             fov_rad=math.radians(110.0))
+    _sky_world(scene)
+    bpy.context.view_layer.update()
+    return scene, horizon, zenith
+
+
+def _render_sky(scene, camera, sun, e_sun, width, height):
+    scene.camera = camera
+    ru.set_engine(scene, scene.render.engine, width=width, height=height)
+    image = ru.render_to_array(scene)[..., :3]
+    directions = ru.pixel_centre_directions(camera, width, height)
+    expected = sky_radiance(directions, sun, ATMOSPHERE, e_sun, dome=dome_distance_approx, ground_albedo=ALBEDO,
+                            dtype=np.float32)
+    off_sun = np.degrees(np.arccos(np.clip(directions @ sun, -1.0, 1.0))) > 1.5
+    return image, expected, off_sun
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_sky_matches_physics_and_looks_right(engine):
+    scene, horizon, zenith = _sky_scene(engine)
+    ru.set_engine(scene, engine, width=16, height=8)
+    worst, results = 0.0, {}
+    for label, elevation, azimuth in (("noon", 60.0, 150.0), ("parity", 20.0, 30.0), ("sunset", 2.0, 45.0),
+                                      ("night", -12.0, 200.0)):
+        sun = _sun(elevation, azimuth)
+        e_sun = _write(scene, sun)
+        for camera, (width, height) in ((horizon, (16, 8)), (zenith, (4, 4))):
+            image, expected, off_sun = _render_sky(scene, camera, sun, e_sun, width, height)
+            assert np.all(np.isfinite(image)), f"{engine} {label}: non-finite sky"
+            error = _relative_error(image, expected)[off_sun]
+            assert error.max() < TOLERANCE[engine], (
+                f"{engine} {label} {camera.name}: worst relative error {error.max():.2e}")
+            worst = max(worst, float(error.max()))
+            results[label, camera.name] = image
+    ERRORS[engine] = worst
+    print(f"\nsky {engine} (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
+    noon_zenith = results["noon", "Zenith"].reshape(-1, 3).mean(axis=0)
+    assert noon_zenith[2] > noon_zenith[1] > noon_zenith[0], f"noon zenith not blue: {noon_zenith}"
+    # Sunset, toward the sun: the horizon camera's bottom row sees 0-6 degrees up; column 8 is ~5 deg from the sun.
+    toward_sun = results["sunset", horizon.name][-2, 8]
+    assert toward_sun[0] > toward_sun[1] > toward_sun[2], f"sunset horizon not red: {toward_sun}"
+    noon = np.mean([_luminance(results["noon", c.name]).mean() for c in (horizon, zenith)])
+    night = np.mean([_luminance(results["night", c.name]).mean() for c in (horizon, zenith)])
+    assert night < 0.01 * noon
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_sky_finite_for_every_sun(engine):
+    scene, horizon, _ = _sky_scene(engine)
+    ru.set_engine(scene, engine, width=4, height=4)
+    azimuths = (0.0, 100.0, 250.0)
+    for index, elevation in enumerate((-90.0, -45.0, -0.3, 0.0, 0.27, 30.0, 89.9, 90.0)):
+        _write(scene, _sun(elevation, azimuths[index % 3]))
+        image = ru.render_to_array(scene)
+        assert np.all(np.isfinite(image)), f"{engine}: non-finite sky for sun elevation {elevation}"
+        assert np.all(image[..., :3] >= 0.0)
+
+
+def _inscattering_material() -> bpy.types.Material:
+    """A black surface with aerial perspective: emission = the group's In-scattering (L0 F_ex + L_in, L0 = 0)."""
+    material = bpy.data.materials.new("Black with aerial perspective")
+    _use_nodes(material)
+    tree = material.node_tree
+    tree.nodes.clear()
+    group = tree.nodes.new("ShaderNodeGroup")
+    group.node_tree = ensure_aerial_perspective_group(AerialFeatures())
+    emission = tree.nodes.new("ShaderNodeEmission")
+    tree.links.new(group.outputs[OUTPUT_INSCATTERING], emission.inputs["Color"])
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(emission.outputs[0], output.inputs["Surface"])
+    return material
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_seamless_horizon(engine):
+    """A black wall beyond the dome composites to the sky pixel; nearer walls get the clamped physics."""
+    scene = ru.reset_scene()
+    camera = ru.make_camera(scene, rotation_euler=(math.radians(100.0), 0.0, 0.0), fov_rad=math.radians(40.0),
+                            clip_start=1.0, clip_end=1.0e4)
+    _sky_world(scene)
+    wall = ru.make_plane(scene, "wall", [(-4e3, 900.0, -2e3), (4e3, 900.0, -2e3), (4e3, 900.0, 4e3),
+                                         (-4e3, 900.0, 4e3)], _inscattering_material())
+    ru.set_engine(scene, engine, width=8, height=8)
+    _write(scene, _sun(25.0, 20.0))
+    wall.hide_render = True
+    sky = ru.render_to_array(scene)[..., :3]
+    wall.hide_render = False
+    worst = 0.0
+    directions = ru.pixel_centre_directions(camera, 8, 8)
+    sun = _sun(25.0, 20.0)
+    for metres_per_unit in (2000.0, 20.0, 110.0):  # the wall at 1800 km (beyond every dome), 18 km, 99 km
+        e_sun = _write(scene, sun, metres_per_unit)
+        image = ru.render_to_array(scene)[..., :3]
+        assert np.all(np.isfinite(image))
+        if metres_per_unit == 2000.0:
+            error = _relative_error(image, sky)
+            worst = float(error.max())
+            assert worst < 1e-2, f"{engine}: wall beyond the dome differs from the sky by {worst:.2e}"
+        else:
+            # Nearer walls: the physics core's clamped lengths. The two-species dome model lets a wall a few
+            # km to ~100 km away outshine the sky behind it by a few % toward the sun (docs/sky_and_sun.md).
+            distance = 900.0 * metres_per_unit / directions[..., 1]
+            s_r, s_m = aerial_distance_clamped(distance, elevation_of(directions), ATMOSPHERE,
+                                               dome=lambda e, a, h: dome_distance_approx(e, a, h, np.float32))
+            expected = inscattering_two_species(s_r, s_m, directions @ sun, ATMOSPHERE, e_sun, np.float32)
+            error = _relative_error(image, expected)
+            assert error.max() < TOLERANCE[engine], f"{engine}: wall at {metres_per_unit * 0.9:g} km: {error.max():.2e}"
+            print(f"\n{engine} wall at {metres_per_unit * 0.9:g} km: error {error.max():.2e}, "
+                  f"brightest wall/sky ratio {(image / sky).max():.4f}")
+    print(f"\nseamless {engine} (Blender {bpy.app.version_string}): wall beyond the dome vs sky {worst:.2e}")
+
+
+# -- sun lamp, world insertion, baking (the add-on registered) -----------------------------------
+
+
+@pytest.fixture
+def addon():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    atmos_addon.register()
+    yield bpy.context.scene
+    atmos_addon.unregister()
+
+
+def test_sun_angles_round_trip(addon):
+    scene = addon
+    lamp, message = sun_lamp.ensure_sun_lamp(scene)
+    assert lamp.name == sun_lamp.CREATED_SUN_NAME and "created" in message
+    assert sun_lamp.ensure_sun_lamp(scene)[0] == lamp
+    for elevation, azimuth in ((30.0, 0.0), (2.0, 250.0), (-10.0, 90.0), (75.0, 359.0)):
+        e, a = math.radians(elevation), math.radians(azimuth)
+        sun_lamp.set_sun_angles(scene, e, a)
+        assert tuple(lamp.rotation_euler) == pytest.approx((math.pi / 2 - e, 0.0, math.pi - a), abs=1e-6)
+        bpy.context.view_layer.update()
+        direction, _ = sync.sun_direction(scene)
+        np.testing.assert_allclose(direction, _sun(elevation, azimuth), atol=1e-6)
+        assert sun_lamp.sun_angles(scene) == pytest.approx((e, a), abs=1e-5)
+        assert scene.atmos.sun_elevation == pytest.approx(e, abs=1e-5)
+    scene.atmos.sun_elevation = math.radians(40.0)  # the panel's slider rotates the lamp
+    scene.atmos.sun_azimuth = math.radians(120.0)
+    bpy.context.view_layer.update()
+    np.testing.assert_allclose(sync.sun_direction(scene)[0], _sun(40.0, 120.0), atol=1e-6)
+
+
+def test_lamp_carries_e_sun_and_follows_the_sun(addon):
+    scene = addon
+    lamp = bpy.data.objects.new("My Sun", bpy.data.lights.new("My Sun", "SUN"))
+    scene.collection.objects.link(lamp)
+    lamp.data.color, lamp.data.energy, lamp.data.angle = (0.9, 0.8, 0.7), 3.0, 0.1
+    effect.enable_effect(scene)
+    radius = 0.5 * scene.atmos.sun_angular_diameter
+    assert scene.atmos.sun_angular_diameter == pytest.approx(math.radians(0.5332), rel=1e-6)
+    for elevation in (60.0, 2.0):
+        sun_lamp.set_sun_angles(scene, math.radians(elevation), 1.0)
+        bpy.context.view_layer.update()  # the depsgraph handler re-syncs the lamp
+        e_sun = sun_irradiance_ground(math.radians(elevation), ATMOSPHERE, 0.0, radius)
+        light = lamp.data
+        np.testing.assert_allclose(np.array(light.color) * light.energy, e_sun, rtol=1e-5)
+        assert light.angle == pytest.approx(2.0 * radius, rel=1e-6)
+        assert scene.atmos.sun_strength_display == pytest.approx(light.energy, rel=1e-5)
+        np.testing.assert_allclose(scene["atmos_sun_irradiance"], e_sun, rtol=1e-6)
+    colour = np.array(lamp.data.color)
+    assert colour[0] > colour[1] > colour[2], f"sunset lamp not red: {colour}"
+    expected_colour, _ = sun_color_and_strength(math.radians(2.0), ATMOSPHERE, 0.0, radius)
+    np.testing.assert_allclose(colour, expected_colour, rtol=1e-5)
+    depsgraph_writes = lamp.data.energy
+    bpy.context.view_layer.update()
+    assert lamp.data.energy == depsgraph_writes
+    effect.disable_effect(scene)
+    assert tuple(lamp.data.color) == pytest.approx((0.9, 0.8, 0.7)) and lamp.data.energy == pytest.approx(3.0)
+    assert lamp.data.angle == pytest.approx(0.1)
+
+
+def _world_state(scene):
+    sky_world = scene.world
+    if sky_world is None:
+        return None
+    tree = sky_world.node_tree
+    nodes = sorted((n.name, n.bl_idname, tuple(n.location)) for n in tree.nodes)
+    links = sorted((l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier)
+                   for l in tree.links)
+    return sky_world.name, nodes, links, sky_world.cycles.sampling_method, sky_world.cycles.sample_map_resolution
+
+
+def test_world_restored_exactly(addon):
+    scene = addon
+    user_world = bpy.data.worlds.new("User World")
+    _use_nodes(user_world)
+    tree = user_world.node_tree
+    sky_texture = tree.nodes.new("ShaderNodeTexSky")
+    tree.links.new(sky_texture.outputs[0], tree.nodes["Background"].inputs["Color"])
+    user_world.cycles.sampling_method = "NONE"
+    scene.world = user_world
+    before = _world_state(scene)
+    effect.enable_effect(scene)
+    assert scene.world == user_world and len(world.tagged_nodes(user_world)) == 2
+    output = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld")
+    assert output.inputs["Surface"].links[0].from_node.get("atmos_tag") == world.BACKGROUND_TAG
+    # importance sampling was off: switched on, with a coarse map (the sky is smooth)
+    assert user_world.cycles.sampling_method == "MANUAL"
+    assert user_world.cycles.sample_map_resolution == world.SKY_IMPORTANCE_MAP_RESOLUTION
+    effect.enable_effect(scene)  # idempotent
+    assert len(world.tagged_nodes(user_world)) == 2
+    scene.atmos.sky_enabled = False
+    assert _world_state(scene) == before
+    scene.atmos.sky_enabled = True
+    assert len(world.tagged_nodes(user_world)) == 2
+    effect.disable_effect(scene)
+    assert _world_state(scene) == before and "atmos_sky" not in scene
+    assert "Atmos Sky" not in bpy.data.node_groups  # no orphan group left behind
+
+    scene.world = None  # no world: one is created, then removed
+    effect.enable_effect(scene)
+    assert scene.world.name == world.CREATED_WORLD_NAME
+    effect.disable_effect(scene)
+    assert scene.world is None and world.CREATED_WORLD_NAME not in bpy.data.worlds
+    assert sun_lamp.CREATED_SUN_NAME not in bpy.data.objects  # the lamp enabling created is gone too
+
+
+# -- farm safety -----------------------------------------------------------------------------------
+
+FARM_SCRIPT = textwrap.dedent("""
+    import sys
+    import bpy
+    import numpy as np
+    bpy.ops.wm.open_mainfile(filepath=sys.argv[1])
+    scene = bpy.context.scene
+    assert "atmos_addon" not in sys.modules and not hasattr(bpy.types.Scene, "atmos")
+    for frame in (1, 5):
+        scene.frame_set(frame)
+        scene.render.filepath = sys.argv[2] + f"/farm_{frame}.exr"
+        bpy.ops.render.render(write_still=True)
+""")
+
+
+def _render_frame(scene, frame: int) -> np.ndarray:
+    scene.frame_set(frame)
+    return ru.render_to_array(scene)
+
+
+def _read_exr(path: Path) -> np.ndarray:
+    image = bpy.data.images.load(str(path), check_existing=False)
+    width, height = image.size
+    pixels = np.empty(width * height * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    bpy.data.images.remove(image)
+    return pixels.reshape(height, width, 4)[::-1]
+
+
+def test_animated_sun_renders_the_same_without_the_addon(addon, tmp_path: Path):
+    scene = addon
+    ru.make_camera(scene, rotation_euler=(math.radians(80.0), 0.0, 0.0), fov_rad=math.radians(70.0),
+                   clip_start=0.1, clip_end=500.0)
+    ground = bpy.data.materials.new("Ground")
+    _use_nodes(ground)
+    ru.make_plane(scene, "ground", [(-200, -5, -1), (200, -5, -1), (200, 300, -1), (-200, 300, -1)], ground)
+    scene.frame_start, scene.frame_end = 1, 5
+    sun_lamp.set_sun_angles(scene, math.radians(40.0), math.radians(10.0))
+    lamp = sync.sun_object(scene)
+    lamp.keyframe_insert("rotation_euler", frame=1)
+    sun_lamp.set_sun_angles(scene, math.radians(3.0), math.radians(60.0))
+    lamp.keyframe_insert("rotation_euler", frame=5)
+    ru.set_engine(scene, "CYCLES", width=8, height=8)
+    scene.cycles.samples = 4
+    scene.cycles.seed = 7
+    scene.cycles.max_bounces = 2
+    scene.render.use_compositing = True
+    scene.frame_set(1)
+    report = effect.enable_effect(scene)
+    scene.world.cycles.sample_map_resolution = 16  # importance sampling stays on (the default), small and quick
+    assert any("baked" in message for message in report.messages), report.messages
+    fcurves = sun_lamp._baked_fcurves(scene)
+    assert {c.data_path for c in fcurves} >= {'["atmos_sun_direction"]', '["atmos_sun_irradiance"]'}
+    assert all(len(c.keyframe_points) == 5 for c in fcurves)
+    assert {c.data_path for c in sun_lamp._baked_fcurves(lamp.data)} == {"color", "energy"}
+    ours = {frame: _render_frame(scene, frame) for frame in (1, 5)}
+    assert np.abs(ours[1] - ours[5]).max() > 1e-2  # the sun moved
+    path = tmp_path / "farm.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    script = tmp_path / "farm.py"
+    script.write_text(FARM_SCRIPT)
+    env = dict(os.environ, HOME=str(tmp_path), PYTHONPATH="")
+    result = subprocess.run([sys.executable, str(script), str(path), str(tmp_path)], env=env, cwd=tmp_path,
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-3000:]
+    for frame in (1, 5):
+        farm = _read_exr(tmp_path / f"farm_{frame}.exr")
+        difference = np.abs(farm - ours[frame]).max()
+        print(f"\nfarm frame {frame} (Blender {bpy.app.version_string}): max abs difference {difference:.2e}")
+        assert difference <= 1e-4
+    # Not animated: a bake writes nothing (and removes the earlier keys).
+    lamp.animation_data_clear()
+    assert sun_lamp.bake_sun_animation(scene) == 0 and not sun_lamp._baked_fcurves(scene)
