@@ -19,7 +19,7 @@ import numpy as np
 from sample_scenes.valley import add_camera, grid_object, material, new_scene, place_sun
 
 CAMERA_HEIGHT_M = 1.7
-SUN_ELEVATION_DEG = 18.0
+SUN_ELEVATION_DEG = 25.0
 SUN_AZIMUTH_DEG = 165.0  # clockwise from +Y: low behind-right of the camera, raking across the dunes
 
 
@@ -62,6 +62,8 @@ def _highlands() -> bpy.types.Object:
 def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
     """Replace the current file's contents with the Mars scene and return its scene."""
     scene = new_scene("Mars", resolution)
+    # Mars gets 43 % of Earth's sunlight and its dust dims it further: expose for it, as a rover camera does.
+    scene.view_settings.exposure = 2.5
     rng = np.random.default_rng(11)
     add_camera(scene, lens_mm=40.0, height_m=CAMERA_HEIGHT_M + 6.0, pitch_deg=91.5)  # standing on a dune crest
 

@@ -26,7 +26,7 @@ RIDGES = (
 )
 CAMERA_HEIGHT_M = 2.0
 SUN_ELEVATION_DEG = 25.0
-SUN_AZIMUTH_DEG = 20.0  # clockwise from north (+Y): the sun stands ahead and to the right (backlit haze)
+SUN_AZIMUTH_DEG = 60.0  # clockwise from north (+Y): ahead-right, just out of frame: its glow shows on the right
 
 
 def material(name: str, colour: tuple[float, float, float], roughness: float = 0.8) -> bpy.types.Material:
@@ -71,7 +71,7 @@ def _ridge(index: int, distance_m: float, height_m: float, colour: tuple[float, 
 
 
 def new_scene(name: str, resolution: tuple[int, int]) -> bpy.types.Scene:
-    """Empty the file and return its scene set up for the samples: Cycles, 32 samples, Standard view."""
+    """Empty the file and return its scene set up for the samples: Cycles, 32 samples, AgX view (Blender's default)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.name = name
@@ -80,7 +80,7 @@ def new_scene(name: str, resolution: tuple[int, int]) -> bpy.types.Scene:
     scene.render.engine = "CYCLES"
     scene.cycles.samples = 32
     scene.cycles.use_denoising = False
-    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.view_transform = "AgX"
     return scene
 
 
