@@ -4,17 +4,22 @@
 Per colour channel, for a shading point at distance s (m) from the camera, seen along the unit view
 direction v, with the unit direction to the sun l and mu = v . l:
 
-    s_R, s_M = min(s, R_R(v)), min(s, R_M(v))                   per-species lengths clamped to the sky dome
-    tau     = beta_R s_R + (beta_M + beta_M,abs) s_M            optical depth
-    F_ex    = exp(-tau)                                         "Transmittance"
-    L_in    = (beta_R Phi_R(mu) s_R + beta_M Phi_HG(mu, g) s_M) E_sun phi1(tau)      "Inscattering"
+    b_R, b_M = min(s, R_R(v)), min(s, R_M(v))                   per-species lengths clamped to the sky dome
+    a        = min(b_R, b_M),  t_R = b_R - a,  t_M = b_M - a    shared segment; the longer species' tail
+    tau(x_R, x_M) = beta_R x_R + (beta_M + beta_M,abs) x_M     optical depth of a slab
+    L(x_R, x_M)   = (beta_R Phi_R(mu) x_R + beta_M Phi_HG(mu, g) x_M) phi1(tau(x_R, x_M))
+    F_ex    = exp(-tau(a, a)) exp(-tau(t_R, t_M))               "Transmittance"
+    L_in    = E_sun [L(a, a) + exp(-tau(a, a)) L(t_R, t_M)]     "Inscattering"
     Phi_R   = 3 / (16 pi) (1 + mu^2)
     Phi_HG  = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^(3/2))       (normalised; g > 0 scatters forward)
     phi1(x) = (1 - exp(-x)) / x, or 1 - x/2 + x^2/6 for x < 1e-3 (no 0/0 at zero depth)
 
-which is eq. 19 when s is nearer than both domes. R_R, R_M are the virtual-dome distances of :mod:`.dome`
-(the very nodes the "Atmos Sky" world group evaluates), so a surface beyond the dome shows exactly the sky
-behind it and no surface is hazier than the sky ("seamless horizon"; ``physics.sky.aerial_distance_clamped``).
+which is eq. 19 when s is nearer than both domes (t_R = t_M = 0). Beyond the shorter dome (the haze's, normally)
+only the longer species' slab is added behind the mixed one: the layered dome of ``physics.sky`` (one of t_R,
+t_M is 0, so one L(t_R, t_M) covers either order). R_R, R_M are the virtual-dome distances of :mod:`.dome` (the
+very nodes the "Atmos Sky" world group evaluates), so a black surface's in-scattering grows with s and reaches
+exactly the sky behind it beyond both domes, never more ("seamless horizon";
+``physics.sky.inscattering_layered``).
 s is Camera Data > View Distance times the ``atmos_metres_per_unit`` parameter; v is -(Geometry >
 Incoming). Mie absorption adds to extinction only. The other parameters are read from scene custom
 properties (see :mod:`.parameters`), so the tree depends only on which terms are present
@@ -40,7 +45,7 @@ from .graph import GraphBuilder, Socket
 #: Name of the node group in ``bpy.data.node_groups``.
 GROUP_NAME = "Atmos Aerial Perspective"
 #: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
-NODE_GROUP_VERSION = 2  # 2: lengths clamped to the virtual sky dome
+NODE_GROUP_VERSION = 3  # 2: lengths clamped to the virtual sky dome; 3: the layered dome
 #: Optical depth below which phi1 uses its series (the physics core's ``SMALL_OPTICAL_DEPTH``).
 SMALL_OPTICAL_DEPTH = 1.0e-3
 #: Floor of the Henyey-Greenstein denominator base (the physics core's ``HG_DENOMINATOR_FLOOR``).
@@ -142,26 +147,55 @@ def phase_henyey_greenstein(g: GraphBuilder, mu: Socket, anisotropy: Socket) -> 
     return g.div(one_minus_g2, g.mul(base_to_three_halves, 4.0 * math.pi), label="Phi_HG")
 
 
-def inscattering(g: GraphBuilder, features: AerialFeatures, s_rayleigh: Socket, s_mie: Socket, mu: Socket,
-                 beta_rayleigh: Socket, beta_mie: Socket | None, tau: Socket, f_ex: Socket) -> Socket:
-    """L_in = (beta_R Phi_R s_R + beta_M Phi_HG s_M) E_sun phi1(tau) per channel (eq. 19, E_sun at the ground)."""
-    scattered = g.scale(beta_rayleigh, g.mul(phase_rayleigh(g, mu), s_rayleigh), label="beta_R Phi_R s_R")
-    if features.mie:
-        anisotropy = g.attribute(parameters.MIE_G)
-        mie = g.scale(g.mul(beta_mie, phase_henyey_greenstein(g, mu, anisotropy)), s_mie, label="beta_M Phi_HG s_M")
-        scattered = g.add(scattered, mie, label="beta_R Phi_R s_R + beta_M Phi_HG s_M")
-    sun_irradiance = g.attribute(parameters.SUN_IRRADIANCE)
-    return g.mul(g.mul(scattered, sun_irradiance), one_minus_exp_over_x(g, tau, f_ex), label="L_in")
+def scattering_per_length(g: GraphBuilder, features: AerialFeatures, mu: Socket, beta_rayleigh: Socket,
+                          beta_mie: Socket | None) -> tuple[Socket, Socket | None]:
+    """(beta_R Phi_R(mu), beta_M Phi_HG(mu, g)) per channel, 1/(m sr): the species' scattering per unit length."""
+    rayleigh = g.scale(beta_rayleigh, phase_rayleigh(g, mu), label="beta_R Phi_R")
+    if not features.mie:
+        return rayleigh, None
+    anisotropy = g.attribute(parameters.MIE_G)
+    return rayleigh, g.mul(beta_mie, phase_henyey_greenstein(g, mu, anisotropy), label="beta_M Phi_HG")
 
 
-def scattering_terms(g: GraphBuilder, features: AerialFeatures, s_rayleigh: Socket, s_mie: Socket, mu: Socket
-                     ) -> tuple[Socket, Socket]:
-    """(F_ex, L_in) for per-species lengths: the part the aerial group and the sky group share."""
+def slab(g: GraphBuilder, sigma_rayleigh: Socket, sigma_mie: Socket | None, beta_rayleigh: Socket,
+         beta_mie_ex: Socket | None, length_rayleigh: Socket, length_mie: Socket | None, name: str
+         ) -> tuple[Socket, Socket]:
+    """(T, L / E_sun) of one slab with a length per species: exp(-tau) and (sigma_R x_R + sigma_M x_M) phi1(tau).
+
+    tau = beta_R x_R + beta_M,ex x_M; exact for species in fixed proportion and for one species alone
+    (``physics.sky.inscattering_two_species`` without E_sun).
+    """
+    tau = optical_depth(g, beta_rayleigh, beta_mie_ex, length_rayleigh, length_mie)
+    f_ex = transmittance(g, tau)
+    scattered = g.scale(sigma_rayleigh, length_rayleigh, label=f"sigma_R x_R ({name})")
+    if sigma_mie is not None:
+        scattered = g.multiply_add(sigma_mie, length_mie, scattered, label=f"sigma_R x_R + sigma_M x_M ({name})")
+    return f_ex, g.mul(scattered, one_minus_exp_over_x(g, tau, f_ex), label=f"L / E_sun ({name})")
+
+
+def scattering_terms(g: GraphBuilder, features: AerialFeatures, s_rayleigh: Socket, s_mie: Socket | None,
+                     mu: Socket) -> tuple[Socket, Socket]:
+    """(F_ex, L_in) of the layered dome for per-species lengths b_R, b_M: shared by the aerial and sky groups.
+
+    a = min(b_R, b_M) holds both species, the tail t_i = b_i - a (one of them 0) the longer one alone:
+    L_in = E_sun [L(a, a) + T(a, a) L(t_R, t_M)], F_ex = T(a, a) T(t_R, t_M) (``physics.sky.inscattering_layered``).
+    With neither Mie scattering nor absorption (``s_mie`` None) there is one species and one slab of length b_R.
+    """
     beta_rayleigh = g.attribute(parameters.BETA_RAYLEIGH)
     beta_mie = g.attribute(parameters.BETA_MIE) if features.mie else None
-    tau = optical_depth(g, beta_rayleigh, mie_extinction_coefficient(g, features, beta_mie), s_rayleigh, s_mie)
-    f_ex = transmittance(g, tau)
-    return f_ex, inscattering(g, features, s_rayleigh, s_mie, mu, beta_rayleigh, beta_mie, tau, f_ex)
+    beta_mie_ex = mie_extinction_coefficient(g, features, beta_mie)
+    sigma_rayleigh, sigma_mie = scattering_per_length(g, features, mu, beta_rayleigh, beta_mie)
+    sun_irradiance = g.attribute(parameters.SUN_IRRADIANCE)
+    if s_mie is None:
+        f_ex, light = slab(g, sigma_rayleigh, None, beta_rayleigh, None, s_rayleigh, None, "b_R")
+        return f_ex, g.mul(light, sun_irradiance, label="L_in")
+    shared = g.min(s_rayleigh, s_mie, label="a = min(b_R, b_M)")
+    tail_rayleigh = g.sub(s_rayleigh, shared, label="t_R = b_R - a")
+    tail_mie = g.sub(s_mie, shared, label="t_M = b_M - a")
+    f_near, l_near = slab(g, sigma_rayleigh, sigma_mie, beta_rayleigh, beta_mie_ex, shared, shared, "a")
+    f_far, l_far = slab(g, sigma_rayleigh, sigma_mie, beta_rayleigh, beta_mie_ex, tail_rayleigh, tail_mie, "tail")
+    light = g.multiply_add(f_near, l_far, l_near, label="L(a) + T(a) L(tail)")
+    return g.mul(f_near, f_far, label="F_ex"), g.mul(light, sun_irradiance, label="L_in")
 
 
 # -- the group ---------------------------------------------------------------------------------------
@@ -236,4 +270,4 @@ def describe_features(features: AerialFeatures) -> str:
 
 
 #: Nodes in the group per feature key for this :data:`NODE_GROUP_VERSION` (group output included).
-NODE_COUNTS = {"rayleigh": 73, "rayleigh+abs": 76, "rayleigh+mie": 104, "rayleigh+mie+abs": 106}
+NODE_COUNTS = {"rayleigh": 73, "rayleigh+abs": 115, "rayleigh+mie": 143, "rayleigh+mie+abs": 145}

@@ -6,12 +6,17 @@ for a camera on the ground (Hoffman & Preetham 2002, GDC slides "Virtual sky dom
 is ``atmos_addon.physics.sky.sky_radiance`` with ``dome=dome_distance_approx``):
 
     R_R, R_M = dome distances of :mod:`.dome` (elevation clamped at the horizon)
-    tau      = beta_R R_R + (beta_M + beta_M,abs) R_M
-    L_sky    = (beta_R Phi_R(mu) R_R + beta_M Phi_HG(mu, g) R_M) E_sun phi1(tau)          mu = v . l
-    L_ground = albedo E_sun max(l_z, 0) / pi exp(-tau)            below the horizon (v_z < 0), ground "ALBEDO"
+    a        = min(R_R, R_M),  t_R = R_R - a,  t_M = R_M - a      the layered dome: both species, then the longer
+    tau(x_R, x_M) = beta_R x_R + (beta_M + beta_M,abs) x_M
+    L(x_R, x_M)   = (beta_R Phi_R(mu) x_R + beta_M Phi_HG(mu, g) x_M) phi1(tau(x_R, x_M))            mu = v . l
+    L_sky    = E_sun [L(a, a) + exp(-tau(a, a)) L(t_R, t_M)]
+    F_ex     = exp(-tau(a, a)) exp(-tau(t_R, t_M))
+    L_ground = albedo E_sun max(l_z, 0) / pi F_ex                 below the horizon (v_z < 0), ground "ALBEDO"
     L_disk   = E_sun / Omega  (1 - u (1 - mu_e)) / (1 - u / 3)     inside the disk, above the horizon,
                Omega = 4 pi sin^2(r / 2),  mu_e = sqrt(1 - (sin t / sin r)^2),  sin t = |v x l|
 
+The scattering is the aerial group's own ``scattering_terms`` with b_i = R_i (s -> infinity), so a black
+surface beyond both domes composites to exactly this sky and a nearer one to less.
 E_sun is the sun's irradiance at the ground (the aerial group's parameter): the sky, the haze in front of
 surfaces and the sun lamp share it. The disk (angular radius r, linear limb darkening u, 0 for a uniform
 disk; its mean over the disk is 1 - u/3 for a small disk) integrates to E_sun; it is shown to camera rays
@@ -35,7 +40,7 @@ from .graph import GraphBuilder, Socket
 #: Name of the world node group in ``bpy.data.node_groups``.
 SKY_GROUP_NAME = "Atmos Sky"
 #: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
-SKY_GROUP_VERSION = 1
+SKY_GROUP_VERSION = 2  # 2: the layered dome
 OUTPUT_RADIANCE = "Radiance"
 GROUND_MODES = ("ALBEDO", "BLACK")
 _VERSION_KEY = "atmos_version"
@@ -135,7 +140,8 @@ def build_sky(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
     r_rayleigh, r_mie = dome_distances(g, view_z)
     sun = sun_direction(g)
     mu = cos_theta_to_sun(g, view, sun)
-    f_ex, radiance = scattering_terms(g, features.aerial, r_rayleigh, r_mie, mu)
+    haze = features.mie or features.absorption  # as the aerial group: one species, one slab, without haze
+    f_ex, radiance = scattering_terms(g, features.aerial, r_rayleigh, r_mie if haze else None, mu)
     radiance = g.add(radiance, sun_disk(g, view, view_z, sun, mu), label="sky + disk")
     if features.ground == "ALBEDO":
         _, _, sun_z = g.separate(sun, label="l")
@@ -167,6 +173,6 @@ def ensure_sky_group(features: SkyFeatures = SkyFeatures()) -> bpy.types.ShaderN
 
 
 #: Nodes in the sky group per feature key for this :data:`SKY_GROUP_VERSION` (group output included).
-SKY_NODE_COUNTS = {"rayleigh": 101, "rayleigh+ground": 112, "rayleigh+abs": 103, "rayleigh+abs+ground": 114,
-                   "rayleigh+mie": 131, "rayleigh+mie+ground": 142, "rayleigh+mie+abs": 133,
-                   "rayleigh+mie+abs+ground": 144}
+SKY_NODE_COUNTS = {"rayleigh": 101, "rayleigh+ground": 112, "rayleigh+abs": 142, "rayleigh+abs+ground": 153,
+                   "rayleigh+mie": 170, "rayleigh+mie+ground": 181, "rayleigh+mie+abs": 172,
+                   "rayleigh+mie+abs+ground": 183}

@@ -27,18 +27,33 @@ the dome of the ray grazing the ground (the horizon; elevation clamped to the ge
 at 0 for a ground camera): the sky behind the ground is hidden, and the world background below the horizon
 is a distant ground seen through the horizon's aerial perspective (see :func:`sky_radiance`).
 
-Sky radiance with per-species path lengths s_R (molecules) and s_M (aerosols), per channel:
+Sky radiance and aerial perspective: the layered dome. Per channel, with per-species lengths
+b_R = min(s, R_R), b_M = min(s, R_M) (a surface at distance s; s -> infinity for the sky), the two species share
+the first stretch of the ray and only the species with the longer dome fills the rest: the haze (smaller scale
+height, normally the shorter dome) sits near the camera, the molecules reach on. Along the ray,
 
-    tau  = beta_R s_R + (beta_M,sc + beta_M,abs) s_M
-    L_in = (beta_R Phi_R(mu) s_R + beta_M,sc Phi_HG(mu, g) s_M) E_sun (1 - exp(-tau)) / tau
-         = (beta_R Phi_R(mu) s_R + beta_M,sc Phi_HG(mu, g) s_M) E_sun phi1(tau)
+    segment 1 = [0, a],  a = min(b_R, b_M):   both species (an even mixture)
+    segment 2 = [a, b],  b = max(b_R, b_M):   the longer species alone, t_R = b_R - a, t_M = b_M - a (one is 0)
 
-which is eq. 19 of the paper when s_R = s_M = s, and otherwise the exact single-scattering integral when the
-species' densities stay proportional along the ray (the scattering per unit optical depth is then constant).
-Where they do not (the haze sits lower than the molecules) it spreads each species' scatterers evenly over
-the optical depth. E_sun is the sun's irradiance at the ground (the slides' choice), so the sky goes black
-exactly when the sun has set: with E_sun = 0 single scattering gives L = 0, and twilight (light scattered
-from the still-lit upper atmosphere, and multiple scattering) needs a model beyond this one.
+and single scattering of a homogeneous slab of length l and coefficients (beta_sc Phi, beta_ex) is
+S l phi1(beta_ex l) E_sun (S the scattering per unit length, phi1(x) = (1 - exp(-x)) / x), so
+
+    L_in = L_2sp(a, a) + T_2sp(a, a) L_2sp(t_R, t_M)
+    F_ex = T_2sp(a, a) T_2sp(t_R, t_M) = exp(-(beta_R b_R + beta_M,ex b_M))
+    L_2sp(x_R, x_M) = (beta_R Phi_R(mu) x_R + beta_M,sc Phi_HG(mu, g) x_M) E_sun phi1(beta_R x_R + beta_M,ex x_M)
+    T_2sp(x_R, x_M) = exp(-(beta_R x_R + beta_M,ex x_M))
+
+L_2sp (:func:`inscattering_two_species`) is exact for a slab whose species are mixed in fixed proportion; in the
+tail one of t_R, t_M is 0, so it is the one-species slab there and the order of the two tails never matters. A
+black surface's L_in is therefore non-decreasing in s (growing s only adds a slab behind the ones already seen),
+equals eq. 19 of the paper (the core's ``inscattering``) while s <= min(R_R, R_M), and equals the sky
+(:func:`sky_radiance`, the same formula with b_i = R_i) for s >= max(R_R, R_M): no surface outshines the sky behind
+it (:func:`inscattering_layered`, :func:`extinction_layered`). The earlier even mixture over the whole ray,
+L_2sp(b_R, b_M), let the molecular depth added beyond the haze dome dim the haze's light, so a black wall between
+the domes toward the sun came out up to 24 % brighter than the sky behind it. E_sun is the sun's irradiance at
+the ground (the slides' choice), so the sky goes black exactly when the sun has set: with E_sun = 0 single
+scattering gives L = 0, and twilight (light scattered from the still-lit upper atmosphere, and multiple
+scattering) needs a model beyond this one.
 
 Units: lengths m, coefficients 1/m, angles rad, radiance in the units of E_sun per steradian. Directions use
 Blender's world axes (z up). Numpy only.
@@ -181,7 +196,7 @@ def dome_distance_approx(elevation_rad: ArrayLike, atm: Atmosphere, altitude_m: 
 
 def extinction_two_species(s_rayleigh_m: ArrayLike, s_mie_m: ArrayLike, atm: Atmosphere,
                            dtype: DTypeLike = np.float64) -> np.ndarray:
-    """Transmittance exp(-(beta_R s_R + (beta_M,sc + beta_M,abs) s_M)) per channel, shape (..., 3).
+    """Transmittance of one slab, exp(-(beta_R s_R + (beta_M,sc + beta_M,abs) s_M)) per channel, shape (..., 3).
 
     The extinction of :func:`~atmos_addon.physics.aerial_perspective.extinction` with a path length per
     species (m, clamped at 0); equal to it when s_R = s_M.
@@ -199,10 +214,12 @@ def _optical_depth(s_r: np.ndarray, s_m: np.ndarray, atm: Atmosphere, dt: type) 
 
 def inscattering_two_species(s_rayleigh_m: ArrayLike, s_mie_m: ArrayLike, cos_theta: ArrayLike, atm: Atmosphere,
                              sun_irradiance: ArrayLike, dtype: DTypeLike = np.float64) -> np.ndarray:
-    """In-scattered radiance with a path length per species, shape (..., 3) (module docstring):
+    """In-scattered radiance of one slab with a path length per species (an even mixture), shape (..., 3):
 
-        L_in = (beta_R Phi_R(mu) s_R + beta_M,sc Phi_HG(mu, g) s_M) E_sun phi1(beta_R s_R + beta_M,ex s_M)
+        L_2sp = (beta_R Phi_R(mu) s_R + beta_M,sc Phi_HG(mu, g) s_M) E_sun phi1(beta_R s_R + beta_M,ex s_M)
 
+    Exact when the species are mixed in fixed proportion along the slab, and for one species alone (s_R or s_M
+    0): the building block of :func:`inscattering_layered`, which is what the sky and the aerial perspective use.
     Eq. 19 of Hoffman & Preetham 2002 (:func:`~atmos_addon.physics.aerial_perspective.inscattering`) when
     s_R = s_M. ``s_rayleigh_m``, ``s_mie_m`` (m) and ``cos_theta`` (view direction . sun direction) broadcast
     together; ``sun_irradiance`` is per channel, (3,) or (..., 3). Stable as tau -> 0 (phi1's series).
@@ -216,15 +233,65 @@ def inscattering_two_species(s_rayleigh_m: ArrayLike, s_mie_m: ArrayLike, cos_th
     return scattered * e_sun * one_minus_exp_over_x(_optical_depth(s_r, s_m, atm, dt), dt)
 
 
+def _layered_segments(s_r: np.ndarray, s_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(a, t_R, t_M): the shared segment a = min(b_R, b_M) and the tails b_i - a (one of them 0), same dtype."""
+    a = np.minimum(s_r, s_m)
+    return a, s_r - a, s_m - a
+
+
+def _layered(seg_r: np.ndarray, seg_m: np.ndarray, tail_r: np.ndarray, tail_m: np.ndarray, mu: np.ndarray,
+             atm: Atmosphere, sun_irradiance: ArrayLike, dt: type) -> tuple[np.ndarray, np.ndarray]:
+    """(L_in, F_ex) of the layered dome from the segment's and the tails' lengths per species (module docstring).
+
+    ``seg_r``, ``seg_m`` are the shared segment's lengths in ``atm``'s coefficients (equal in real metres; they
+    differ only as sea-level-equivalent lengths of an elevated camera, see :func:`sky_radiance`).
+    """
+    near = inscattering_two_species(seg_r, seg_m, mu, atm, sun_irradiance, dt)
+    far = inscattering_two_species(tail_r, tail_m, mu, atm, sun_irradiance, dt)
+    t_near = extinction_two_species(seg_r, seg_m, atm, dt)
+    return near + t_near * far, t_near * extinction_two_species(tail_r, tail_m, atm, dt)
+
+
+def inscattering_layered(s_rayleigh_m: ArrayLike, s_mie_m: ArrayLike, cos_theta: ArrayLike, atm: Atmosphere,
+                         sun_irradiance: ArrayLike, dtype: DTypeLike = np.float64) -> np.ndarray:
+    """In-scattered radiance of the layered dome, shape (..., 3) (module docstring):
+
+        L_in = L_2sp(a, a) + T_2sp(a, a) L_2sp(b_R - a, b_M - a),   a = min(b_R, b_M)
+
+    ``s_rayleigh_m``, ``s_mie_m`` are the per-species lengths b_i = min(s, R_i) of
+    :func:`aerial_distance_clamped` (m, clamped at 0; s -> infinity gives the sky), ``cos_theta`` the view
+    direction . sun direction; all broadcast together. ``sun_irradiance`` is per channel, (3,) or (..., 3).
+    Non-decreasing in s for fixed domes; equal to the core's ``inscattering`` (eq. 19) when b_R = b_M = s.
+    """
+    dt = np.dtype(dtype).type
+    s_r, s_m, mu = np.broadcast_arrays(nonnegative_distance(s_rayleigh_m, dt), nonnegative_distance(s_mie_m, dt),
+                                       clamp_cosine(cos_theta, dt))
+    a, tail_r, tail_m = _layered_segments(s_r, s_m)
+    return _layered(a, a, tail_r, tail_m, mu, atm, sun_irradiance, dt)[0]
+
+
+def extinction_layered(s_rayleigh_m: ArrayLike, s_mie_m: ArrayLike, atm: Atmosphere,
+                       dtype: DTypeLike = np.float64) -> np.ndarray:
+    """Transmittance of the layered dome, T_2sp(a, a) T_2sp(b_R - a, b_M - a), per channel, shape (..., 3).
+
+    The product of the two segments' transmittances (as the shader nodes form it); mathematically
+    exp(-(beta_R b_R + beta_M,ex b_M)), :func:`extinction_two_species` of the same lengths.
+    """
+    dt = np.dtype(dtype).type
+    s_r, s_m = np.broadcast_arrays(nonnegative_distance(s_rayleigh_m, dt), nonnegative_distance(s_mie_m, dt))
+    a, tail_r, tail_m = _layered_segments(s_r, s_m)
+    return extinction_two_species(a, a, atm, dt) * extinction_two_species(tail_r, tail_m, atm, dt)
+
+
 def aerial_distance_clamped(distance_m: ArrayLike, elevation_rad: ArrayLike, atm: Atmosphere,
                             altitude_m: float = 0.0, dome: DomeFunction = dome_distance
                             ) -> tuple[np.ndarray, np.ndarray]:
     """Per-species aerial-perspective lengths (min(s, R_R), min(s, R_M)), m: the "seamless horizon".
 
     A surface at ``distance_m`` along a ray of elevation ``elevation_rad`` gets the aerial perspective of
-    :func:`inscattering_two_species` / :func:`extinction_two_species` with these lengths in
-    :func:`atmosphere_at_altitude` (``atm``, ``altitude_m``): no surface is hazier than the sky behind it, and
-    a black surface beyond the dome shows exactly the sky of :func:`sky_radiance` in its direction.
+    :func:`inscattering_layered` / :func:`extinction_layered` with these lengths in
+    :func:`atmosphere_at_altitude` (``atm``, ``altitude_m``): a black surface's in-scattering grows with its
+    distance and never passes the sky behind it, which it reaches exactly beyond both domes.
     """
     s = nonnegative_distance(distance_m)
     r_rayleigh, r_mie = dome(elevation_rad, atm, altitude_m)
@@ -257,7 +324,8 @@ def sky_radiance(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, sun_i
         L_sky = L_in(R_R, R_M, mu)                                        above the geometric horizon
         L_sky = L_ground exp(-tau(R_R, R_M)) + L_in(R_R, R_M, mu)         below it (rays meeting the ground)
 
-    with L_in of :func:`inscattering_two_species` in :func:`atmosphere_at_altitude`, (R_R, R_M) from ``dome``
+    with L_in and tau of the layered dome (:func:`inscattering_layered`, the lengths b_i = R_i: s -> infinity)
+    in :func:`atmosphere_at_altitude`, (R_R, R_M) from ``dome``
     (:func:`dome_distance` or :func:`dome_distance_approx`) at the view elevation, mu = view . sun.
     Below the horizon the dome is the horizon's, so the ground counts as distant: the world background's ground
     is what lies beyond the scene's own geometry, and the horizon stays seamless. L_ground is
@@ -271,16 +339,21 @@ def sky_radiance(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, sun_i
     altitude = float(_camera_altitude(altitude_m, atm))
     elevation = elevation_of(view)
     r_rayleigh, r_mie = dome(elevation, atm, altitude)
-    # Sea-level-equivalent lengths R_i n_i(h) with the sea-level coefficients: the same optical depths as R_i in
-    # the camera's atmosphere, bounded for any camera height.
-    s_r = np.asarray(r_rayleigh, dtype=np.float64) * relative_density(altitude, atm.rayleigh_scale_height)
-    s_m = np.asarray(r_mie, dtype=np.float64) * relative_density(altitude, atm.mie_scale_height)
-    mu = np.sum(view * sun, axis=-1)
-    radiance = inscattering_two_species(s_r, s_m, mu, atm, sun_irradiance, dt)
+    # The layered segments in real metres (a = min(R_R, R_M), tails R_i - a), then as sea-level-equivalent
+    # lengths x n_i(h) with the sea-level coefficients: the same optical depths as in the camera's atmosphere,
+    # bounded for any camera height.
+    r_rayleigh, r_mie = np.broadcast_arrays(np.asarray(r_rayleigh, dtype=np.float64),
+                                            np.asarray(r_mie, dtype=np.float64))
+    a, tail_r, tail_m = _layered_segments(r_rayleigh, r_mie)
+    n_r = relative_density(altitude, atm.rayleigh_scale_height)
+    n_m = relative_density(altitude, atm.mie_scale_height)
+    mu = clamp_cosine(np.sum(view * sun, axis=-1), dt)
+    radiance, transmittance = _layered(*(np.asarray(x, dtype=dt) for x in (a * n_r, a * n_m, tail_r * n_r,
+                                                                          tail_m * n_m)), mu, atm, sun_irradiance, dt)
     if np.any(np.asarray(ground_albedo) != 0.0):
         below = (elevation < horizon_dip_rad(altitude, atm.planet_radius))[..., np.newaxis]
         ground = ground_radiance(sun, sun_irradiance, ground_albedo).astype(dt)
-        radiance = radiance + np.where(below, ground * extinction_two_species(s_r, s_m, atm, dt), dt(0.0))
+        radiance = radiance + np.where(below, ground * transmittance, dt(0.0))
     return radiance.astype(dt)
 
 

@@ -20,7 +20,7 @@ import pytest
 import render_utils as ru
 from atmos_addon.physics import Atmosphere, inscattering
 from atmos_addon.physics.sky import (aerial_distance_clamped, dome_distance_approx, elevation_of,
-                                     extinction_two_species, inscattering_two_species)
+                                     extinction_layered, inscattering_layered)
 from node_groups import (AERIAL_PARAMETER_NAMES, GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING,
                          OUTPUT_TRANSMITTANCE, AerialFeatures, clear_shader_parameters, describe_features,
                          ensure_aerial_perspective_group, node_count, read_shader_parameters, write_shader_parameters)
@@ -126,8 +126,8 @@ def _expected(camera, metres_per_unit: float, sun_direction, atm: Atmosphere = A
     # lies beyond the dome above the horizon, the nearer planes do not.
     s_r, s_m = aerial_distance_clamped(distance_m, elevation_of(directions), atm,
                                        dome=lambda e, a, h: dome_distance_approx(e, a, h, np.float32))
-    transmittance = extinction_two_species(s_r, s_m, atm, np.float32)
-    light = inscattering_two_species(s_r, s_m, mu, atm, SUN_IRRADIANCE, np.float32)
+    transmittance = extinction_layered(s_r, s_m, atm, np.float32)
+    light = inscattering_layered(s_r, s_m, mu, atm, SUN_IRRADIANCE, np.float32)
     gain = (GAIN_NUMERATOR / depth)[..., np.newaxis]
     top = np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2
     return np.where(top, transmittance, light * gain)

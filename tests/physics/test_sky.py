@@ -4,12 +4,13 @@
 import numpy as np
 import pytest
 
+from atmos_addon import presets
 from atmos_addon.physics import (Atmosphere, extinction, inscattering, phase_hg, phase_rayleigh, reference,
                                  sun_irradiance_ground)
 from atmos_addon.physics.sky import (aerial_distance_clamped, atmosphere_at_altitude, chapman_approx,
-                                     dome_distance, dome_distance_approx, extinction_two_species,
-                                     inscattering_two_species, limb_darkening_factor, sky_radiance,
-                                     sun_disk_radiance, sun_disk_solid_angle)
+                                     dome_distance, dome_distance_approx, extinction_layered, extinction_two_species,
+                                     inscattering_layered, inscattering_two_species, limb_darkening_factor,
+                                     sky_radiance, sun_disk_radiance, sun_disk_solid_angle)
 from atmos_addon.physics.sun import LUMINANCE_WEIGHTS, SUN_ANGULAR_RADIUS_RAD
 
 ATM = Atmosphere()
@@ -114,6 +115,90 @@ def test_two_species_closed_form():
                                scattered / tau * e_sun * (1.0 - np.exp(-tau)), rtol=1e-12)
 
 
+# --- the layered dome --------------------------------------------------------------------------------------------
+
+#: Atmospheres for the layered-dome checks: clear and sunset Earth, Mars (dust almost as high as the gas), and one
+#: with the haze above the molecules (H_M > H_R: the Rayleigh dome is the shorter one).
+LAYERED_ATMOSPHERES = {"clear": presets.load("clear").atmosphere, "sunset": presets.load("sunset").atmosphere,
+                       "mars": presets.load("mars").atmosphere,
+                       "high-haze": Atmosphere(rayleigh_scale_height=3_000.0, mie_scale_height=9_000.0)}
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_layered_dome_is_the_core_model_nearer_than_both_domes(dtype):
+    s = np.concatenate([[0.0, 1e-3], np.geomspace(1.0, 1e6, 40)])
+    mu = np.linspace(-1.0, 1.0, s.size)
+    e_sun = np.array([3.0, 2.5, 1.5])
+    rtol = 1e-12 if dtype == np.float64 else 2e-6
+    np.testing.assert_allclose(inscattering_layered(s, s, mu, ATM, e_sun, dtype),
+                               inscattering(s, mu, ATM, e_sun, dtype), rtol=rtol, atol=1e-30)
+    rtol = 1e-12 if dtype == np.float64 else 2e-6 * (1.0 + float(ATM.extinction_coefficient.max() * s.max()))
+    np.testing.assert_allclose(extinction_layered(s, s, ATM, dtype), extinction(s, ATM, dtype), rtol=rtol,
+                               atol=1e-30)
+
+
+def test_layered_dome_closed_form():
+    """Both species over [0, a], the longer one alone over [a, b], seen through the first segment."""
+    e_sun = np.array([3.0, 2.5, 1.5])
+    for s_r, s_m in ((90e3, 20e3), (15e3, 40e3)):
+        mu, a = 0.3, min(s_r, s_m)
+        sigma_r = ATM.rayleigh_scattering * phase_rayleigh(mu)
+        sigma_m = ATM.mie_scattering * phase_hg(mu, ATM.mie_g)
+        tau_a = (ATM.rayleigh_scattering + ATM.mie_extinction) * a
+        near = (sigma_r + sigma_m) * a * e_sun * (1.0 - np.exp(-tau_a)) / tau_a
+        sigma, beta, tail = (sigma_r, ATM.rayleigh_scattering, s_r - a) if s_r > s_m else (
+            sigma_m, ATM.mie_extinction, s_m - a)
+        far = sigma * e_sun * (1.0 - np.exp(-beta * tail)) / beta
+        np.testing.assert_allclose(inscattering_layered(s_r, s_m, mu, ATM, e_sun), near + np.exp(-tau_a) * far,
+                                   rtol=1e-12)
+        np.testing.assert_allclose(extinction_layered(s_r, s_m, ATM), extinction_two_species(s_r, s_m, ATM),
+                                   rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", LAYERED_ATMOSPHERES)
+@pytest.mark.parametrize("dome", [dome_distance, dome_distance_approx])
+def test_black_wall_never_outshines_the_sky(name, dome):
+    """L_in of a black wall is non-decreasing in its distance, toward and away from the sun, and ends at the sky.
+
+    Also below the shorter dome it is the core's eq. 19, and beyond the longer one exactly the sky.
+    """
+    atm = LAYERED_ATMOSPHERES[name]
+    sun_elevation = 25.0
+    e_sun = sun_irradiance_ground(np.radians(sun_elevation), atm)
+    elevation = np.array([0.0, 2.0, 10.0, 20.0, 30.0, 60.0])
+    for azimuth in (0.0, 5.0, 90.0, 180.0):  # 0: toward the sun (10-30 deg from it at these elevations)
+        views, sun = _direction(elevation, azimuth), _direction(sun_elevation)
+        mu = views @ sun
+        sky = sky_radiance(views, sun, atm, e_sun, dome=dome)
+        r_r, r_m = dome(np.radians(elevation), atm, 0.0)
+        s = np.geomspace(1.0, 2e6, 600)[:, np.newaxis]
+        s_r, s_m = aerial_distance_clamped(s, np.radians(elevation), atm, dome=dome)
+        light = inscattering_layered(s_r, s_m, mu, atm, e_sun)
+        assert np.all(np.diff(light, axis=0) >= -1e-15 * np.abs(light[1:])), f"{name} az {azimuth}: not monotonic"
+        assert np.all(light <= sky * (1.0 + 1e-12)), f"{name} az {azimuth}: a wall outshines the sky"
+        np.testing.assert_allclose(light[-1], sky, rtol=1e-12)  # 2000 km: beyond both domes
+        near = s <= np.minimum(r_r, r_m)
+        core = inscattering(np.broadcast_to(s, near.shape), mu, atm, e_sun)
+        np.testing.assert_allclose(light[near], core[near], rtol=1e-12)
+        assert np.any(near) and np.any(~near)
+
+
+def test_even_mixture_overshoot_is_gone():
+    """The black wall 18 / 99 km away near the sun that the even mixture made 16 / 24 % brighter than its sky."""
+    sun = _direction(25.0, 20.0)
+    e_sun = sun_irradiance_ground(np.radians(25.0), ATM)
+    elevation = np.radians(np.linspace(-3.0, 12.0, 16))
+    views = _direction(np.degrees(elevation), 17.5)
+    r_r, r_m = dome_distance_approx(elevation, ATM)
+    old_sky = inscattering_two_species(r_r, r_m, views @ sun, ATM, e_sun)
+    sky = sky_radiance(views, sun, ATM, e_sun, dome=dome_distance_approx)
+    for distance, overshoot in ((18e3, 1.15), (99e3, 1.2)):
+        s_r, s_m = aerial_distance_clamped(distance, elevation, ATM, dome=dome_distance_approx)
+        old = inscattering_two_species(s_r, s_m, views @ sun, ATM, e_sun)
+        assert np.max(old / old_sky) > overshoot
+        assert np.all(inscattering_layered(s_r, s_m, views @ sun, ATM, e_sun) <= sky * (1.0 + 1e-12))
+
+
 # --- sky colour -------------------------------------------------------------------------------------------------
 
 def test_clear_noon_zenith_is_blue():
@@ -162,7 +247,7 @@ def test_black_surface_beyond_the_dome_shows_the_sky(altitude_m, dome):
     far = 5e7  # m, beyond every dome
     s_r, s_m = aerial_distance_clamped(far, np.radians(elevation), ATM, altitude_m, dome=dome)
     local = atmosphere_at_altitude(ATM, altitude_m)
-    surface = np.zeros(3) * extinction_two_species(s_r, s_m, local) + inscattering_two_species(
+    surface = np.zeros(3) * extinction_layered(s_r, s_m, local) + inscattering_layered(
         s_r, s_m, views @ sun, local, e_sun)
     np.testing.assert_allclose(surface, sky, rtol=1e-6)
     # A nearer surface is clamped per species only beyond that species' dome.
