@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import effect
+from . import effect, group_integrity
 
 
 def _report(operator, report: effect.Report) -> None:
@@ -65,4 +65,21 @@ class ATMOS_OT_refresh(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (ATMOS_OT_enable, ATMOS_OT_disable, ATMOS_OT_refresh)
+class ATMOS_OT_reset_groups(bpy.types.Operator):
+    """Rebuild the Atmos node groups as Atmos makes them, undoing edits made inside them (materials keep their links)"""
+
+    bl_idname = "atmos.reset_groups"
+    bl_label = "Reset Atmos Node Groups"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        try:
+            rebuilt = group_integrity.reset_groups(context.scene)
+        except (RuntimeError, ValueError, TypeError) as error:
+            self.report({"ERROR"}, f"Atmos could not reset its node groups: {error}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Atmos: rebuilt {', '.join(rebuilt) or 'no node group (none present)'}")
+        return {"FINISHED"}
+
+
+CLASSES = (ATMOS_OT_enable, ATMOS_OT_disable, ATMOS_OT_refresh, ATMOS_OT_reset_groups)

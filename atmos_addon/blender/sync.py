@@ -16,8 +16,10 @@ from bpy.app.handlers import persistent
 from mathutils import Vector
 
 from .. import import_sibling
-from ..physics import sun_irradiance_ground
-from .settings_io import atmosphere_from_settings  # noqa: F401  (re-exported for callers of sync)
+from . import group_integrity
+from ..physics import Atmosphere, sun_irradiance_ground
+from ..physics.sun import LUMINANCE_WEIGHTS
+from .settings_io import FIELD_MAP, atmosphere_from_settings  # noqa: F401  (re-exported for callers of sync)
 
 #: Used when the scene has no sun lamp: 45 degrees above the horizon, towards +Y (north in Blender's convention).
 DEFAULT_SUN_DIRECTION = (0.0, math.sqrt(0.5), math.sqrt(0.5))
@@ -25,6 +27,10 @@ DEFAULT_SUN_DIRECTION = (0.0, math.sqrt(0.5), math.sqrt(0.5))
 #: Last synced state per scene (a cache only; nothing here is needed to restore a file).
 _last_sun_matrix: dict[str, tuple] = {}
 _last_counts: dict[str, tuple[int, int]] = {}
+#: Per scene: (settings values, Atmosphere) and ((settings values, elevation, sun radius), E_sun, colour, strength).
+#: A slider that moves neither the atmosphere nor the sun (distance scale, albedo, limb darkening) skips the physics.
+_last_atmosphere: dict[str, tuple] = {}
+_last_sun_values: dict[str, tuple] = {}
 
 
 def node_groups():
@@ -58,7 +64,10 @@ def sun_direction(scene) -> tuple[np.ndarray, str]:
     A sun lamp shines along its local -Z axis, so the direction towards the sun is its local +Z
     axis in world space.
     """
-    lamp = sun_object(scene)
+    return _direction_of(sun_object(scene))
+
+
+def _direction_of(lamp) -> tuple[np.ndarray, str]:
     if lamp is None:
         return np.array(DEFAULT_SUN_DIRECTION), "No sun lamp: using the default sun 45 degrees above the horizon"
     axis = lamp.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0))
@@ -88,22 +97,57 @@ def ensure_group(scene):
     return group
 
 
+def _atmosphere(scene, settings) -> tuple[tuple, Atmosphere]:
+    """The settings' values (each read once) and their :class:`Atmosphere`, reused while the values are unchanged."""
+    raw = tuple(getattr(settings, prop) for prop, _, _ in FIELD_MAP)
+    key = tuple(value if isinstance(value, float) else tuple(value) for value in raw)
+    cached = _last_atmosphere.get(scene.name)
+    if cached is not None and cached[0] == key:
+        return key, cached[1]
+    values = {}
+    for (_, field, factor), value in zip(FIELD_MAP, key):
+        array = np.asarray(value, dtype=float) / factor
+        values[field] = array if array.ndim else float(array)
+    atmosphere = Atmosphere(**values)
+    _last_atmosphere[scene.name] = (key, atmosphere)
+    return key, atmosphere
+
+
+def _sun_values(scene, key: tuple, atmosphere: Atmosphere, elevation_rad: float, sun_radius: float):
+    """E_sun at the ground, and the lamp's colour and strength (as :func:`sun_color_and_strength` splits it), cached."""
+    sun_key = (key, elevation_rad, sun_radius)
+    cached = _last_sun_values.get(scene.name)
+    if cached is not None and cached[0] == sun_key:
+        return cached[1:]
+    irradiance = np.asarray(sun_irradiance_ground(elevation_rad, atmosphere, 0.0, sun_radius), dtype=float)
+    strength = float(irradiance @ LUMINANCE_WEIGHTS)
+    colour = tuple(float(c) for c in irradiance / strength) if strength > 0.0 else (1.0, 1.0, 1.0)
+    _last_sun_values[scene.name] = (sun_key, irradiance, colour, strength)
+    return irradiance, colour, strength
+
+
 def sync_scene(scene) -> None:
     """Write the shader parameters of ``scene`` from its settings and sun lamp (values only).
 
     E_sun at the ground follows the sun's elevation through the transmittance of the whole air
     column (:func:`sun_irradiance_ground`); the shader multiplies its unit-sun in-scattering by it.
+    It is computed once per change of the atmosphere or the sun (a cache on their values), so a slider
+    that changes neither costs only the writes.
     """
     settings = scene.atmos
-    atmosphere = atmosphere_from_settings(settings)
-    direction, sun_status = sun_direction(scene)
+    key, atmosphere = _atmosphere(scene, settings)
+    lamp = sun_object(scene)
+    direction, sun_status = _direction_of(lamp)
     elevation_rad = math.asin(float(np.clip(direction[2], -1.0, 1.0)))
-    sun_radius = 0.5 * float(settings.sun_angular_diameter)
-    irradiance = np.asarray(sun_irradiance_ground(elevation_rad, atmosphere, 0.0, sun_radius), dtype=float)
-    if settings.enabled:
+    diameter = float(settings.sun_angular_diameter)
+    sun_radius = 0.5 * diameter
+    irradiance, colour, strength = _sun_values(scene, key, atmosphere, elevation_rad, sun_radius)
+    enabled = settings.enabled
+    if enabled:
         ensure_group(scene)  # cheap when current; rebuilds in place when the feature set changed
         if settings.sky_enabled:
             ensure_sky_group(scene)
+        group_integrity.stamp_new()  # cheap when every group is stamped
     node_groups().parameters.write_shader_parameters(
         scene,
         beta_rayleigh=atmosphere.rayleigh_scattering,
@@ -112,7 +156,7 @@ def sync_scene(scene) -> None:
         mie_g=atmosphere.mie_g,
         sun_direction=direction,
         sun_irradiance=irradiance,
-        metres_per_unit=metres_per_unit(scene),
+        metres_per_unit=float(scene.unit_settings.scale_length) * float(settings.distance_scale),
         planet_radius=atmosphere.planet_radius,
         rayleigh_scale_height=atmosphere.rayleigh_scale_height,
         mie_scale_height=atmosphere.mie_scale_height,
@@ -121,8 +165,7 @@ def sync_scene(scene) -> None:
         ground_albedo=tuple(settings.ground_albedo),
     )
     _set_if_changed(settings, "status_sun", sun_status)
-    lamp = sun_object(scene)
-    _sync_sun_lamp(scene, lamp, elevation_rad)
+    _sync_sun_lamp(scene, lamp, elevation_rad, (colour, strength, diameter), enabled=enabled)
     _last_sun_matrix[scene.name] = _matrix_key(lamp)
 
 
@@ -137,17 +180,22 @@ def ensure_sky_group(scene):
     return node_groups().sky.ensure_sky_group(sky_features_from_settings(scene.atmos))
 
 
-def _sync_sun_lamp(scene, lamp, elevation_rad: float) -> None:
-    """Show E_sun's colour and strength in the settings and, with ``drive_sun_lamp``, on the lamp (changes only)."""
+def _sync_sun_lamp(scene, lamp, elevation_rad: float, values=None, *, enabled: bool | None = None) -> None:
+    """Show E_sun's colour and strength in the settings and, with ``drive_sun_lamp``, on the lamp (changes only).
+
+    ``values`` is (colour, strength, angle) when the caller has them; otherwise they are computed.
+    """
     from . import sun_lamp
 
     settings = scene.atmos
-    colour, strength, angle = sun_lamp.lamp_values(scene, elevation_rad)
+    colour, strength, angle = values if values is not None else sun_lamp.lamp_values(scene, elevation_rad)
     if sun_lamp._differs(tuple(settings.sun_colour_display), colour):
         settings.sun_colour_display = colour
     if sun_lamp._differs(settings.sun_strength_display, strength):
         settings.sun_strength_display = strength
-    if lamp is not None and settings.enabled and settings.drive_sun_lamp:
+    if enabled is None:
+        enabled = settings.enabled
+    if lamp is not None and enabled and settings.drive_sun_lamp:
         sun_lamp.drive_lamp(scene, lamp, colour, strength, angle)
 
 
@@ -162,14 +210,17 @@ def forget(scene_name: str | None = None) -> None:
     if scene_name is None:
         _last_sun_matrix.clear()
         _last_counts.clear()
+        _last_atmosphere.clear()
+        _last_sun_values.clear()
     else:
-        _last_sun_matrix.pop(scene_name, None)
-        _last_counts.pop(scene_name, None)
+        for cache in (_last_sun_matrix, _last_counts, _last_atmosphere, _last_sun_values):
+            cache.pop(scene_name, None)
 
 
 @persistent
 def on_depsgraph_update(scene, depsgraph) -> None:
     """Follow the sun lamp and pick up new materials in scenes with the effect on (cheap checks first)."""
+    group_integrity.on_depsgraph_update(scene, depsgraph)  # drops the panel's cached edit check (one flag query)
     settings = getattr(scene, "atmos", None)
     if settings is None or not settings.enabled:
         return
@@ -181,12 +232,14 @@ def on_depsgraph_update(scene, depsgraph) -> None:
         from . import effect
 
         effect.pick_up_new_materials(scene)
+        group_integrity.stamp_new()
 
 
 @persistent
 def on_load_post(*_args) -> None:
     """After a file loads: rebuild stale node groups and re-sync every scene with the effect on."""
     forget()
+    group_integrity.invalidate()
     for scene in bpy.data.scenes:
         settings = getattr(scene, "atmos", None)
         if settings is not None and settings.enabled:

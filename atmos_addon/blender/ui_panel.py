@@ -14,7 +14,7 @@ from __future__ import annotations
 import bpy
 
 from .. import presets
-from . import preset_ops
+from . import group_integrity, preset_ops
 
 
 def _settings(context):
@@ -228,6 +228,12 @@ class ATMOS_PT_atmosphere_aerial(_SubPanel, bpy.types.Panel):
         layout.operator("atmos.refresh", icon="FILE_REFRESH")
         if not settings.enabled:
             return
+        edited = group_integrity.edited_groups()
+        if edited:
+            box = layout.box()
+            for name in edited:
+                box.label(text=group_integrity.warning(name), icon="ERROR")
+            box.operator("atmos.reset_groups", icon="LOOP_BACK")
         status = layout.column(align=True)
         for line in (settings.status_built, settings.status_sun, settings.status_materials, settings.status_objects):
             if line:
