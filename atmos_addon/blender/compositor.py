@@ -229,6 +229,7 @@ def install(scene) -> list[str]:
         return messages  # already installed: idempotent
     state = state or {}
     state.setdefault("use_compositing", bool(scene.render.use_compositing))
+    state.setdefault("viewer_images", _viewer_images())
     declare_aovs(scene, state)
     group = ensure_composite_group()
     tree = _scene_tree(scene, state)
@@ -274,6 +275,17 @@ def install(scene) -> list[str]:
     return messages
 
 
+def _viewer_images() -> list[str]:
+    """Names of Blender's compositor images ("Viewer Node"; 4.5 creates one when a compositor tree is set up)."""
+    return [image.name for image in bpy.data.images if image.type == "COMPOSITING"]
+
+
+def _remove_viewer_images_created_since(names_before) -> None:
+    for image in [bpy.data.images[name] for name in _viewer_images()]:
+        if image.name not in names_before:  # Blender recreates it whenever a compositor needs one
+            bpy.data.images.remove(image)
+
+
 def _installed_nodes(scene) -> list:
     tree = _current_tree(scene)
     if tree is None:
@@ -316,6 +328,8 @@ def uninstall(scene) -> None:
     if not GROUP_API and "use_nodes" in state:
         scene.use_nodes = bool(state["use_nodes"])
     remove_aovs(scene, state)
+    if "viewer_images" in state:
+        _remove_viewer_images_created_since(state["viewer_images"])
     if "use_compositing" in state:
         scene.render.use_compositing = bool(state["use_compositing"])
     if STATE_KEY in scene:
