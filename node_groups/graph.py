@@ -235,15 +235,25 @@ class GraphBuilder:
     # -- layout -------------------------------------------------------------------------------------
 
     def layout(self, *, origin: tuple[float, float] = (0.0, 0.0)) -> None:
-        """Place every node the builder made in a column by its depth (inputs left, outputs right)."""
+        """Place every node the builder made in a column by its depth (inputs left, outputs right).
+
+        The positions are computed in Python and written with one ``foreach_set``: a ``node.location``
+        write per node would trigger one node-tree update each (Blender re-checks the file's trees on
+        every edit, so the layout cost grew with the number of materials in the file).
+        """
+        nodes = self.tree.nodes
+        locations = [0.0] * (2 * len(nodes))
+        nodes.foreach_get("location", locations)
         rows: dict[int, int] = {}
-        for node in self.tree.nodes:
-            column = self._depth.get(node.name)
+        for index, name in enumerate(node.name for node in nodes):
+            column = self._depth.get(name)
             if column is None:
                 continue
             row = rows.get(column, 0)
             rows[column] = row + 1
-            node.location = (origin[0] + column * _COLUMN_WIDTH, origin[1] - row * _ROW_HEIGHT)
+            locations[2 * index] = origin[0] + column * _COLUMN_WIDTH
+            locations[2 * index + 1] = origin[1] - row * _ROW_HEIGHT
+        nodes.foreach_set("location", locations)
 
     def set_depth(self, node: bpy.types.Node, depth: int) -> None:
         """Force a node's layout column (e.g. the group output to the far right)."""
