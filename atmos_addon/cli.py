@@ -26,6 +26,8 @@ from . import presets as preset_library
 SAMPLE_SCENES = ("valley", "mars")
 ENGINES = ("cycles", "eevee")
 QUALITY_LEVELS = ("fast",)
+#: --mode values and the scene setting each selects (``scene.atmos.render_mode``).
+MODES = {"compositor": "COMPOSITOR", "in-render": "IN_RENDER"}
 EXIT_ERROR = 2
 
 
@@ -159,11 +161,22 @@ def _prepare_scene(args: argparse.Namespace, *, with_preset: bool = True):
     if scene.camera is None:
         raise CliError(f"scene '{scene.name}' has no camera: add one or pick another scene")
     _configure(scene, args)
+    overrides = {}
+    mode = getattr(args, "mode", None)
+    if mode is not None:
+        if mode == "in-render" and scene.render.engine != "CYCLES":
+            raise CliError("--mode in-render needs Cycles (add --engine cycles); Eevee renders with --mode compositor")
+        from .blender import in_render
+
+        if mode == "in-render" and not in_render.supported():
+            raise CliError("--mode in-render needs Blender 4.5 or newer (Cycles 4.2 loses indirect light inside "
+                           "the haze domes); use --mode compositor")
+        overrides["render_mode"] = MODES[mode]
     if with_preset:
         report = api.enable(scene, preset=args.preset, sun_elevation_deg=args.sun_elevation,
-                            sun_azimuth_deg=args.sun_azimuth)
+                            sun_azimuth_deg=args.sun_azimuth, **overrides)
     else:
-        report = api.enable(scene)
+        report = api.enable(scene, **overrides)
     for line in report.messages:
         if line:
             _log(f"atmos: {line}")
@@ -328,6 +341,9 @@ def _add_effect_options(parser: argparse.ArgumentParser, *, preset_required: boo
     parser.add_argument("--engine", choices=ENGINES, help="render engine (default: the scene's)")
     parser.add_argument("--samples", type=_positive_int, help="render samples")
     parser.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
+    parser.add_argument("--mode", choices=tuple(MODES),
+                        help="compositor (both engines: AOVs + compositor) or in-render (Cycles: exact per ray "
+                             "segment, reflections and refractions included); default: the scene's setting")
     parser.add_argument("--quality", choices=QUALITY_LEVELS, default="fast",
                         help="accuracy level (fast: constant density, Hoffman & Preetham 2002)")
 

@@ -11,6 +11,7 @@ groups share), :mod:`.sky` (the "Atmos Sky" world group).
 from .aerial_perspective import (GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING, OUTPUT_TRANSMITTANCE,
                                  AerialFeatures, build_aerial_perspective, describe_features,
                                  ensure_aerial_perspective_group, is_current, node_count)
+from . import in_render  # noqa: F401  (node_groups.in_render, for import_sibling users)
 from .graph import GraphBuilder
 from .parameters import (AERIAL_PARAMETER_NAMES, PARAMETER_NAMES, clear_shader_parameters,
                          keyframe_shader_parameters, read_shader_parameters, write_shader_parameters)

@@ -44,6 +44,10 @@ from .graph import GraphBuilder, Socket
 
 #: Name of the node group in ``bpy.data.node_groups``.
 GROUP_NAME = "Atmos Aerial Perspective"
+#: The same graph with s the length of the ray segment just travelled (Cycles in-render mode, :mod:`.in_render`).
+SEGMENT_GROUP_NAME = "Atmos Aerial Perspective (Ray Segment)"
+#: Where s comes from: the camera's view distance (the AOV path) or Light Path > Ray Length (per ray segment).
+DISTANCE_SOURCES = ("VIEW", "RAY")
 #: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
 NODE_GROUP_VERSION = 3  # 2: lengths clamped to the virtual sky dome; 3: the layered dome
 #: Optical depth below which phi1 uses its series (the physics core's ``SMALL_OPTICAL_DEPTH``).
@@ -79,11 +83,18 @@ class AerialFeatures:
 # -- the quantities ------------------------------------------------------------------------------------
 
 
-def distance_m(g: GraphBuilder) -> Socket:
-    """s: distance from the camera to the shading point, m (View Distance in scene units times metres per unit)."""
-    camera = g.node("ShaderNodeCameraData", label="Camera Data")
+def distance_m(g: GraphBuilder, source: str = "VIEW") -> Socket:
+    """s in m: scene units times metres per unit, from the camera (``"VIEW"``: Camera Data > View Distance) or
+    along the ray segment that reached the shading point (``"RAY"``: Light Path > Ray Length; for a camera ray
+    the distance from its origin, for a reflected or refracted ray the distance from the surface it left;
+    Cycles keeps measuring from that origin across volume boundaries).
+    """
+    if source == "RAY":
+        length = g.node("ShaderNodeLightPath", label="Light Path").outputs["Ray Length"]
+    else:
+        length = g.node("ShaderNodeCameraData", label="Camera Data").outputs["View Distance"]
     metres_per_unit = g.attribute(parameters.METRES_PER_UNIT, output="Fac")
-    return g.mul(camera.outputs["View Distance"], metres_per_unit, label="s (m)")
+    return g.mul(length, metres_per_unit, label="s (m)")
 
 
 def mie_extinction_coefficient(g: GraphBuilder, features: AerialFeatures, beta_mie: Socket | None) -> Socket | None:
@@ -212,12 +223,14 @@ def _ensure_interface(tree: bpy.types.ShaderNodeTree) -> None:
             socket.description = description
 
 
-def build_aerial_perspective(tree: bpy.types.ShaderNodeTree, features: AerialFeatures) -> None:
-    """Clear ``tree``'s nodes and build the aerial-perspective graph for ``features`` (interface kept)."""
+def build_aerial_perspective(tree: bpy.types.ShaderNodeTree, features: AerialFeatures, distance: str = "VIEW"
+                             ) -> None:
+    """Clear ``tree``'s nodes and build the aerial-perspective graph for ``features`` (interface kept);
+    ``distance`` is one of :data:`DISTANCE_SOURCES` (see :func:`distance_m`)."""
     tree.nodes.clear()
     _ensure_interface(tree)
     g = GraphBuilder(tree)
-    s = distance_m(g)
+    s = distance_m(g, distance)
     view = view_direction(g)
     r_rayleigh, r_mie = dome_distances(g, g.separate(view, label="v")[2])
     s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
@@ -237,21 +250,28 @@ def is_current(tree: bpy.types.NodeTree, features: AerialFeatures) -> bool:
     return tree.get(_VERSION_KEY) == NODE_GROUP_VERSION and tree.get(_FEATURES_KEY) == features.key
 
 
-def ensure_aerial_perspective_group(features: AerialFeatures = AerialFeatures()) -> bpy.types.ShaderNodeTree:
+def ensure_aerial_perspective_group(features: AerialFeatures = AerialFeatures(), distance: str = "VIEW"
+                                    ) -> bpy.types.ShaderNodeTree:
     """Get or create the "Atmos Aerial Perspective" group, rebuilt in place only if stale.
+
+    With ``distance="RAY"`` it is the "Atmos Aerial Perspective (Ray Segment)" group: the same graph with s the
+    length of the ray segment (:func:`distance_m`), for Cycles' in-render mode.
 
     A tree stamped with the current :data:`NODE_GROUP_VERSION` and ``features`` is returned untouched.
     A stale one keeps its identity and interface (group nodes in materials keep their links) and gets
     new nodes. A data-block of that name that is not a shader tree is an error the user must resolve.
     """
-    tree = bpy.data.node_groups.get(GROUP_NAME)
+    if distance not in DISTANCE_SOURCES:
+        raise ValueError(f"distance source must be one of {DISTANCE_SOURCES}; got {distance!r}")
+    name = SEGMENT_GROUP_NAME if distance == "RAY" else GROUP_NAME
+    tree = bpy.data.node_groups.get(name)
     if tree is None:
-        tree = bpy.data.node_groups.new(GROUP_NAME, "ShaderNodeTree")
+        tree = bpy.data.node_groups.new(name, "ShaderNodeTree")
     elif tree.bl_idname != "ShaderNodeTree":
-        raise TypeError(f'Node group "{GROUP_NAME}" exists but is a {tree.bl_idname}, not a shader node group; '
+        raise TypeError(f'Node group "{name}" exists but is a {tree.bl_idname}, not a shader node group; '
                         f"rename or delete it, then apply Atmos again")
     if not is_current(tree, features):
-        build_aerial_perspective(tree, features)
+        build_aerial_perspective(tree, features, distance)
     return tree
 
 

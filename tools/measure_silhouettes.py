@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Silhouette error of the compositor path against a per-sample reference; writes docs/silhouettes.md.
+"""Silhouette error of the compositor path (and Cycles In-Render) against a per-sample reference; writes docs/silhouettes.md.
 
-    .venv/bpy-5.0.1/bin/python tools/measure_silhouettes.py [--engines CYCLES,EEVEE] [--no-write]
+    .venv/bpy-5.0.1/bin/python tools/measure_silhouettes.py [--engines CYCLES,EEVEE] [--no-in-render] [--no-write]
 
 The compositor applies ``out = Image * (T + max(1 - C, 0)) / k + L / k`` (k = max(C, 1)) to *pixel-filtered*
 Image and AOVs: where a pixel mixes two surfaces (or a surface and the sky), the product of two averages is
@@ -18,6 +18,10 @@ not the average of the products, so silhouettes carry an error. This tool measur
 - Baseline: the same comparison on the Image without the effect (the 1x render's Image against the
   box-downsampled reference Image). It is what the pixel filter and the reference's finite sample grid
   alone contribute; the compositor's own error is what the composited column adds to it.
+- In-Render (Cycles only; ``--no-in-render`` leaves it out): the same scene switched to
+  ``render_mode = "IN_RENDER"`` (dome volumes, emission per material, compensated sky: the effect applied per
+  ray, before the pixel filter), rendered at 1x with the same two filters and samples, its Image compared with
+  the same reference over the same pixels. Its baseline column is the Compositor row's (the same Image pass).
 
 Scenes (camera at the origin, looking horizontally, 20 deg field of view, sun at 30 deg elevation, the
 "clear" preset, Atmos sky on):
@@ -46,7 +50,7 @@ import numpy as np  # noqa: E402
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender import compositor  # noqa: E402
+from atmos_addon.blender import compositor, in_render  # noqa: E402
 
 DOC = REPO_ROOT / "docs" / "silhouettes.md"
 IS_5 = bpy.app.version >= (5, 0, 0)
@@ -160,6 +164,13 @@ def _route(scene, socket_name: str | None) -> None:
 def render(scene, socket_name: str | None) -> np.ndarray:
     """One render through the compositor, routed to ``socket_name``; linear RGB, row 0 at the top."""
     _route(scene, socket_name)
+    pixels = render_plain(scene)
+    _route(scene, None)
+    return pixels
+
+
+def render_plain(scene) -> np.ndarray:
+    """One render as the scene's compositor (or, without one, the renderer) leaves it; linear RGB, row 0 at the top."""
     settings = scene.render.image_settings
     settings.file_format = "OPEN_EXR"
     settings.color_mode = "RGBA"
@@ -173,7 +184,6 @@ def render(scene, socket_name: str | None) -> np.ndarray:
         pixels = np.empty(width * height * 4, dtype=np.float32)
         image.pixels.foreach_get(pixels)
         bpy.data.images.remove(image)
-    _route(scene, None)
     return pixels.reshape(height, width, 4)[::-1, :, :3].astype(np.float64)
 
 
@@ -188,7 +198,9 @@ def downsample(a: np.ndarray, factor: int) -> np.ndarray:
     return a.reshape(h, factor, w, factor, -1).mean(axis=(1, 3))
 
 
-def measure(case: str, engine: str, width: int, height: int, factor: int, samples: int) -> dict:
+def measure(case: str, engine: str, width: int, height: int, factor: int, samples: int,
+            with_in_render: bool = False) -> dict:
+    """{(mode, 1x filter): errors}; mode "Compositor", and "In-Render" when ``with_in_render`` (Cycles only)."""
     scene = build(case, width, height)
     configure(scene, engine, width * factor, height * factor, point=True, samples=1)
     big = {name: render(scene, name) for name in ("Image", "atmos_transmittance", "atmos_inscattering",
@@ -207,17 +219,29 @@ def measure(case: str, engine: str, width: int, height: int, factor: int, sample
     for dy in range(5):
         for dx in range(5):
             near_edge |= padded[dy:dy + height, dx:dx + width]
-    rows = {}
-    for filter_name, box in (("default", False), ("box 1 px", True)):
+    filters = (("default", False), ("box 1 px", True))
+
+    def errors(out: np.ndarray, baseline: np.ndarray) -> dict:
+        error = np.max(np.abs(out - reference) / reference, axis=-1)[edge]
+        interior = np.max(np.abs(out - reference) / reference, axis=-1)[~near_edge]
+        return dict(mean=float(error.mean()), max=float(error.max()), base_mean=float(baseline.mean()),
+                    base_max=float(baseline.max()), interior_max=float(interior.max()), edges=int(edge.sum()),
+                    finite=bool(np.all(np.isfinite(out))))
+
+    rows, baselines = {}, {}
+    for filter_name, box in filters:
         configure(scene, engine, width, height, point=False, samples=samples, box=box)
         out = render(scene, None)
         image = render(scene, "Image")
-        error = np.max(np.abs(out - reference) / reference, axis=-1)[edge]
-        baseline = np.max(np.abs(image - reference_image) / reference_image, axis=-1)[edge]
-        interior = np.max(np.abs(out - reference) / reference, axis=-1)[~near_edge]
-        rows[filter_name] = dict(mean=float(error.mean()), max=float(error.max()), base_mean=float(baseline.mean()),
-                                 base_max=float(baseline.max()), interior_max=float(interior.max()),
-                                 edges=int(edge.sum()))
+        baselines[filter_name] = np.max(np.abs(image - reference_image) / reference_image, axis=-1)[edge]
+        rows["Compositor", filter_name] = errors(out, baselines[filter_name])
+    if with_in_render and engine == "CYCLES":
+        scene.atmos.render_mode = "IN_RENDER"  # the update callback switches the effect to In-Render mode
+        if not in_render.is_installed(scene):
+            raise RuntimeError("In-Render mode did not install")
+        for filter_name, box in filters:
+            configure(scene, engine, width, height, point=False, samples=samples, box=box)
+            rows["In-Render", filter_name] = errors(render_plain(scene), baselines[filter_name])
     return rows
 
 
@@ -230,21 +254,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--samples", type=int, default=256, help="samples per pixel of the 1x Cycles renders")
     parser.add_argument("--eevee-samples", type=int, default=8,
                         help="samples per pixel of the 1x Eevee renders (software OpenGL here: slow)")
+    parser.add_argument("--no-in-render", action="store_true", help="leave out the Cycles In-Render rows")
     parser.add_argument("--no-write", action="store_true")
     args = parser.parse_args(argv)
     atmos_addon.register()
     start = time.perf_counter()
-    lines = [f"| Blender | engine | scene | 1x filter | edge px | composited vs reference: mean | max "
-             f"| Image only (baseline): mean | max | interior (> 2 px from an edge) max |", "|---|---|---|---|---:|---:|---:|---:|---:|---:|"]
+    lines = [f"| Blender | engine | mode | scene | 1x filter | edge px | with the effect vs reference: mean | max "
+             f"| Image only (baseline): mean | max | interior (> 2 px from an edge) max |",
+             "|---|---|---|---|---|---:|---:|---:|---:|---:|---:|"]
     for engine in args.engines.split(","):
         engine_id = "CYCLES" if engine.upper() == "CYCLES" else EEVEE
         for case in ("near/far", "ridge"):
             samples = args.samples if engine_id == "CYCLES" else args.eevee_samples
-            rows = measure(case, engine_id, args.width, args.height, args.factor, samples)
-            for filter_name, r in rows.items():
-                line = (f"| {bpy.app.version_string} | {engine.capitalize()} | {case} | {filter_name} | {r['edges']} | "
-                        f"{r['mean']:.2%} | {r['max']:.2%} | {r['base_mean']:.2%} | {r['base_max']:.2%} | "
-                        f"{r['interior_max']:.2%} |")
+            rows = measure(case, engine_id, args.width, args.height, args.factor, samples,
+                           with_in_render=not args.no_in_render)
+            for (mode, filter_name), r in rows.items():
+                line = (f"| {bpy.app.version_string} | {engine.capitalize()} | {mode} | {case} | {filter_name} | "
+                        f"{r['edges']} | {r['mean']:.2%} | {r['max']:.2%} | {r['base_mean']:.2%} | "
+                        f"{r['base_max']:.2%} | {r['interior_max']:.2%} |")
+                if not r["finite"]:
+                    print(f"warning: {mode} {case} {filter_name}: the render has non-finite pixels", flush=True)
                 lines.append(line)
                 print(line, flush=True)
     table = "\n".join(lines)

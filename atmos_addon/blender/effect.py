@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import compositor, materials, sun_lamp, sync, world
+from . import compositor, in_render, materials, sun_lamp, sync, world
 
 _applying: set[str] = set()
 
@@ -65,8 +65,10 @@ def _status(scene, report: Report) -> None:
 
 
 def _apply_materials(scene, *, only_new: bool) -> Report:
-    group = sync.ensure_group(scene)
-    result = materials.inject_scene(scene, group, only_new=only_new)
+    if in_render.effective_mode(scene) == "IN_RENDER":
+        result = in_render.inject_scene(scene, sync.ensure_group(scene), only_new=only_new)
+    else:
+        result = materials.inject_scene(scene, sync.ensure_group(scene), only_new=only_new)
     report = Report(
         managed=result.managed,
         skipped=result.skipped,
@@ -83,17 +85,37 @@ def _apply_materials(scene, *, only_new: bool) -> Report:
     return report
 
 
+def mode_mismatch(scene) -> bool:
+    """True when the effect is on in one mode (Compositor / In-Render) and the scene now asks for the other."""
+    return scene.atmos.enabled and in_render.is_installed(scene) != (in_render.effective_mode(scene) == "IN_RENDER")
+
+
 def enable_effect(scene) -> Report:
-    """Apply aerial perspective to every object of ``scene`` (idempotent)."""
+    """Apply aerial perspective to every object of ``scene`` (idempotent).
+
+    The mode is :func:`.in_render.effective_mode`'s: Compositor (AOVs in the materials, the combining node in
+    the compositor) or In-Render (Cycles: dome volumes, emission in the materials, world compensation). When
+    the effect is on in the other mode (the setting or the render engine changed), that mode is removed first.
+    """
+    if mode_mismatch(scene):
+        disable_effect(scene)
     _set_enabled(scene, True)
+    in_render_mode = in_render.effective_mode(scene) == "IN_RENDER"
     report = _apply_materials(scene, only_new=True)
-    report.messages.extend(compositor.install(scene))
+    if not in_render_mode:
+        report.messages.extend(compositor.install(scene))
     if scene.atmos.drive_sun_lamp:
         _, lamp_message = sun_lamp.ensure_sun_lamp(scene)
         report.messages.append(lamp_message)
     sync.sync_scene(scene)
     if scene.atmos.sky_enabled:
         report.messages.append(world.install_sky(scene, sync.ensure_sky_group(scene)))
+    reason = in_render.unavailable_reason(scene)
+    if reason:
+        report.messages.append(reason)
+    if in_render_mode:
+        report.messages.extend(in_render.install(scene, sync.features_from_settings(scene.atmos),
+                                                 sync.atmosphere_of(scene), sync.metres_per_unit(scene)))
     if sun_lamp.bake_sun_animation(scene):
         report.messages.append(f"Animated sun: baked to keyframes for frames {scene.frame_start}-{scene.frame_end}")
     report.messages.append(scene.atmos.status_sun)
@@ -114,6 +136,7 @@ def apply_sky_state(scene) -> None:
         sync.sync_scene(scene)
     else:
         world.uninstall_sky(scene)
+    in_render.refresh_world(scene, sync.features_from_settings(scene.atmos))
 
 
 def pick_up_new_materials(scene) -> None:
@@ -138,6 +161,8 @@ def disable_effect(scene) -> list[str]:
     stripped = materials.remove_all(candidates)
     materials.remove_surface_group()
     compositor.uninstall(scene)
+    in_render.uninstall(scene)
+    in_render.remove_unused_groups()
     world.uninstall_sky(scene)
     sun_lamp.restore_lamp(scene)
     sync.node_groups().parameters.clear_shader_parameters(scene)

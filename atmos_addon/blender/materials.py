@@ -275,11 +275,22 @@ def inject(material, surface_group) -> None:
 
 
 def remove(material) -> bool:
-    """Delete exactly the Atmos-tagged nodes of ``material`` (and with them their links); True if any."""
+    """Delete exactly the Atmos-tagged nodes of ``material`` (and with them their links); True if any.
+
+    Settings the in-render nodes changed outside the tree (Cycles emission sampling, which output is active)
+    are restored from what those nodes remember (:func:`.in_render.restore_material_settings`).
+    """
     tagged = atmos_nodes(material)
+    if not tagged:
+        return False
+    from .in_render import restore_material_settings
+
+    reactivate = restore_material_settings(material, tagged)
     for node in tagged:
         material.node_tree.nodes.remove(node)
-    return bool(tagged)
+    if reactivate and material.node_tree.nodes.get(reactivate) is not None:
+        material.node_tree.nodes[reactivate].is_active_output = True
+    return True
 
 
 def inject_scene(scene, aerial_group, *, only_new: bool = False) -> MaterialReport:

@@ -100,6 +100,13 @@ def _on_sky_enabled(self, context) -> None:
         effect.apply_sky_state(self.id_data)
 
 
+def _on_render_mode(self, context) -> None:
+    if self.enabled:
+        from . import effect
+
+        effect.enable_effect(self.id_data)
+
+
 def _poll_sun(self, obj) -> bool:
     return obj.type == "LIGHT" and obj.data.type == "SUN"
 
@@ -338,6 +345,21 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         description="Show the Atmos sky (same atmosphere and sun as the haze) in the scene's world",
         default=True,
         update=_on_sky_enabled,
+    )
+    render_mode: EnumProperty(
+        name="Mode",
+        description="Where the aerial perspective is applied",
+        items=(
+            ("COMPOSITOR", "Compositor",
+             "Both engines: the materials write AOVs and the compositor applies the haze once per pixel, to the "
+             "first surface the camera sees (reflections and refractions are not hazed; silhouettes get a "
+             "one-pixel fringe)"),
+            ("IN_RENDER", "In-Render (Cycles)",
+             "Cycles: exact haze on every ray segment (reflections, refractions, depth of field, motion blur, "
+             "silhouettes), no added noise. Eevee renders with the Compositor mode"),
+        ),
+        default="COMPOSITOR",
+        update=_on_render_mode,
     )
     sky_ground: EnumProperty(
         name="Ground",

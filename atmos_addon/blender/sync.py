@@ -89,10 +89,16 @@ def _set_if_changed(settings, name: str, value: str) -> None:
 
 
 def ensure_group(scene):
-    """Get or (re)build the aerial perspective shader group for the scene's feature set."""
+    """Get or (re)build the group the scene's materials use, for its feature set and mode: the aerial
+    perspective group (Compositor mode) or the "Atmos In-Render Surface" group (In-Render mode)."""
+    from . import in_render
+
     aerial = node_groups().aerial_perspective
     features = features_from_settings(scene.atmos)
-    group = aerial.ensure_aerial_perspective_group(features)
+    if in_render.effective_mode(scene) == "IN_RENDER":
+        group = node_groups().in_render.ensure_surface_group(features)
+    else:
+        group = aerial.ensure_aerial_perspective_group(features)
     _set_if_changed(scene.atmos, "status_built", aerial.describe_features(features))
     return group
 
@@ -124,6 +130,11 @@ def _sun_values(scene, key: tuple, atmosphere: Atmosphere, elevation_rad: float,
     colour = tuple(float(c) for c in irradiance / strength) if strength > 0.0 else (1.0, 1.0, 1.0)
     _last_sun_values[scene.name] = (sun_key, irradiance, colour, strength)
     return irradiance, colour, strength
+
+
+def atmosphere_of(scene) -> Atmosphere:
+    """The physics :class:`Atmosphere` of the scene's settings (cached while they are unchanged)."""
+    return _atmosphere(scene, scene.atmos)[1]
 
 
 def sync_scene(scene) -> None:
@@ -165,6 +176,11 @@ def sync_scene(scene) -> None:
         ground_albedo=tuple(settings.ground_albedo),
     )
     _set_if_changed(settings, "status_sun", sun_status)
+    from . import in_render
+
+    if enabled and in_render.is_installed(scene):
+        node_groups().in_render.ensure_sky_group(features_from_settings(settings))
+        in_render.sync_domes(scene, atmosphere, metres_per_unit(scene))
     _sync_sun_lamp(scene, lamp, elevation_rad, (colour, strength, diameter), enabled=enabled)
     _last_sun_matrix[scene.name] = _matrix_key(lamp)
 
@@ -224,13 +240,16 @@ def on_depsgraph_update(scene, depsgraph) -> None:
     settings = getattr(scene, "atmos", None)
     if settings is None or not settings.enabled:
         return
+    from . import effect
+
+    if effect.mode_mismatch(scene):  # the render engine or the mode changed: switch Compositor <-> In-Render
+        effect.enable_effect(scene)
+        return
     if _matrix_key(sun_object(scene)) != _last_sun_matrix.get(scene.name):
         sync_scene(scene)
     counts = (len(bpy.data.materials), len(scene.objects))
     if _last_counts.get(scene.name) != counts:
         _last_counts[scene.name] = counts
-        from . import effect
-
         effect.pick_up_new_materials(scene)
         group_integrity.stamp_new()
 

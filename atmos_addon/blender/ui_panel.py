@@ -122,7 +122,14 @@ class ATMOS_PT_atmosphere(_WorldPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         draw_preset_row(layout, context)
-        if not _settings(context).enabled:
+        settings = _settings(context)
+        layout.prop(settings, "render_mode", expand=True)
+        from . import in_render
+
+        reason = in_render.unavailable_reason(context.scene)
+        if reason:
+            layout.label(text=reason, icon="INFO")
+        if not settings.enabled:
             layout.label(text="Off: tick the box to add the atmosphere to the scene", icon="INFO")
 
 

@@ -136,6 +136,25 @@ def test_apply_writes_a_blend_with_the_effect(workdir: Path) -> None:
     assert "blender -b" in proc.stderr
 
 
+def test_apply_in_render_mode_writes_the_domes(workdir: Path) -> None:
+    import bpy
+
+    if bpy.app.version < (4, 5, 0):
+        proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--engine", "cycles",
+                       "--mode", "in-render", "--output", str(workdir / "x.blend"), cwd=workdir)
+        assert_one_line_error(proc, "--mode in-render", "4.5")
+        return
+    out = workdir / "in_render.blend"
+    proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--engine", "cycles",
+                   "--mode", "in-render", "--output", str(out), cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "In-Render mode" in proc.stderr
+
+    with bpy.data.libraries.load(str(out)) as (data_from, _data_to):
+        objects = list(data_from.objects)
+    assert "Atmos Dome (molecules)" in objects and "Atmos Dome (aerosols)" in objects
+
+
 @pytest.mark.parametrize(
     "args, fragments",
     [
@@ -147,6 +166,8 @@ def test_apply_writes_a_blend_with_the_effect(workdir: Path) -> None:
          ("--sun-elevation", "95")),
         (("render", "camera.blend", "--preset", "clear", "--output", "x.jpg"), (".png or .exr",)),
         (("render", "nocamera.blend", "--preset", "clear", "--output", "x.png"), ("no camera",)),
+        (("render", "camera.blend", "--preset", "clear", "--engine", "eevee", "--mode", "in-render", "--output",
+          "x.png"), ("--mode in-render", "Cycles")),
         (("presets", "show", "nope"), ("nope",)),
         (("presets", "validate", "camera.blend"), ("camera.blend",)),
     ],

@@ -1,0 +1,440 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Cycles in-render mode: the dome volumes, the per-material emission and the world compensation.
+
+The mechanism is :mod:`node_groups.in_render`'s; this module puts it into a scene and takes it out again:
+
+- two dome objects ("Atmos Dome (molecules)", "Atmos Dome (aerosols)") in their own collection "Atmos
+  In-Render", meshes from ``physics.dome_mesh`` in metres, scaled to scene units (1 / metres per unit), held on
+  the scene camera by a Copy Location constraint (the domes follow an animated camera at render time), not
+  selectable, drawn as bounds. Ray visibility: camera, glossy, transmission on; diffuse, shadow, volume
+  scatter off;
+- in every managed material, two tagged nodes beside the user's: the "Atmos In-Render Surface" group fed by
+  the surface that Cycles renders (and the opacity socket, as the AOV path finds it), and a Material Output
+  with target Cycles carrying the group's shader and the user's Volume, Displacement and Thickness links.
+  Blender picks an output of the engine's own target over an "All" one, so Eevee keeps rendering the user's
+  output; the user's nodes and links are not touched. Cycles' emission sampling is set to "None" for a
+  material without emission of its own (the added emission is zero on light-sampling rays, so sampling it
+  as a light would only waste samples), remembered on the tagged node and restored on removal;
+- in the world, a Cycles-target World Output with a Background whose colour is the world's colour times the
+  compensation group (the world's own Background, or the Atmos sky's, is left as it is for Eevee);
+- the camera's clip end is raised to beyond the largest dome (Cycles shows the world past the clip end
+  without the rest of the dome, which would leave the compensated sky too bright) and restored on removal.
+
+What must be restored is kept in the scene (custom property :data:`STATE_KEY`), so it survives save and reload.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import bpy
+
+from .. import import_sibling
+from ..physics.dome_mesh import dome_mesh
+from . import materials
+from .materials import TAG
+
+STATE_KEY = "atmos_in_render"
+COLLECTION_NAME = "Atmos In-Render"
+DOME_NAMES = {"MOLECULES": "Atmos Dome (molecules)", "AEROSOLS": "Atmos Dome (aerosols)"}
+SURFACE_TAG = "in-render surface"
+OUTPUT_TAG = "in-render output"
+WORLD_TAGS = ("in-render sky", "in-render background", "in-render world output")
+#: Custom properties on tagged nodes: what to restore when they are removed.
+EMISSION_SAMPLING_KEY = "atmos_emission_sampling"
+REACTIVATE_KEY = "atmos_reactivate"
+DOME_KEY = "atmos_dome_of"
+#: The camera's clip end is raised to this many times the largest dome distance.
+CLIP_MARGIN = 1.05
+MODES = ("COMPOSITOR", "IN_RENDER")
+
+
+def _groups():
+    return import_sibling("node_groups").in_render
+
+
+#: Oldest Blender whose Cycles leaves the scene's indirect light alone inside the domes. Measured: in 4.2.23 a
+#: world-lit wall inside them rendered 15-20 % darker (diffuse and shadow rays lost light to the invisible
+#: domes), in 4.5.15 and 5.0.1 within 2 % of the plain render (tests/blender/test_in_render.py).
+MIN_BLENDER = (4, 5, 0)
+
+
+def supported() -> bool:
+    """True when this Blender can render In-Render mode correctly (:data:`MIN_BLENDER`)."""
+    return bpy.app.version >= MIN_BLENDER
+
+
+def unavailable_reason(scene) -> str | None:
+    """Why the scene's In-Render setting falls back to Compositor mode, or None when it does not."""
+    if getattr(scene.atmos, "render_mode", "COMPOSITOR") != "IN_RENDER":
+        return None
+    if not supported():
+        return "In-Render mode needs Blender 4.5 or newer (Cycles 4.2 loses indirect light inside the haze domes)"
+    if scene.render.engine != "CYCLES":
+        return "In-Render mode needs Cycles: this engine renders with the Compositor mode"
+    return None
+
+
+def effective_mode(scene) -> str:
+    """"IN_RENDER" when the scene asks for it, renders with Cycles and Blender supports it; else "COMPOSITOR"."""
+    wanted = getattr(scene.atmos, "render_mode", "COMPOSITOR")
+    return "IN_RENDER" if wanted == "IN_RENDER" and unavailable_reason(scene) is None else "COMPOSITOR"
+
+
+def is_installed(scene) -> bool:
+    """True when the in-render pieces are in ``scene``."""
+    return scene.get(STATE_KEY) is not None
+
+
+def _state(scene) -> dict:
+    state = scene.get(STATE_KEY)
+    return state.to_dict() if hasattr(state, "to_dict") else dict(state or {})
+
+
+# -- materials ------------------------------------------------------------------------------------------
+
+
+def _cycles_output(tree):
+    """The Material Output Cycles renders: an active one with target Cycles, any Cycles one, else the active "All"."""
+    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and not n.get(TAG)]
+    for candidates in ([n for n in outputs if n.target == "CYCLES" and n.is_active_output],
+                       [n for n in outputs if n.target == "CYCLES"],
+                       [n for n in outputs if n.target == "ALL" and n.is_active_output],
+                       [n for n in outputs if n.target == "ALL"]):
+        if candidates:
+            return candidates[0]
+    return None
+
+
+def _emits(tree, seen=None) -> bool:
+    """True if ``tree`` (or a group inside it) has an Emission node or a Principled BSDF with emission."""
+    seen = set() if seen is None else seen
+    for node in tree.nodes:
+        if node.get(TAG):
+            continue  # Atmos' own nodes
+        if node.bl_idname == "ShaderNodeEmission":
+            return True
+        if node.bl_idname == "ShaderNodeBsdfPrincipled":
+            strength = node.inputs.get("Emission Strength")
+            if strength is not None and (strength.is_linked or strength.default_value > 0.0):
+                return True
+        if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None and node.node_tree not in seen:
+            seen.add(node.node_tree)
+            if _emits(node.node_tree, seen):
+                return True
+    return False
+
+
+def _new_node(tree, bl_idname: str, x: float, y: float):
+    node = tree.nodes.new(bl_idname)
+    materials._place_last(tree.nodes, x, y)
+    return node
+
+
+def _copy_input(tree, source_output, target_output, name: str) -> None:
+    source, target = source_output.inputs.get(name), target_output.inputs.get(name)
+    if source is None or target is None:
+        return
+    if source.is_linked:
+        tree.links.new(source.links[0].from_socket, target)
+    elif hasattr(source, "default_value") and hasattr(target, "default_value"):
+        target.default_value = source.default_value
+
+
+def inject(material, surface_group) -> None:
+    """Add the in-render nodes to one node-based, editable material (idempotent; module docstring)."""
+    materials.remove(material)
+    tree = material.node_tree
+    nodes = tree.nodes
+    x = y = 0.0
+    if len(nodes):
+        x = max(node.location.x + node.width for node in nodes) + 200.0
+        y = max(node.location.y for node in nodes)
+    user_output = _cycles_output(tree)
+    opacity_socket, opacity_value, invert = materials._opacity(tree)
+    group = _new_node(tree, "ShaderNodeGroup", x, y)
+    group.label = "Atmos In-Render Surface"
+    group[TAG] = SURFACE_TAG
+    group.node_tree = surface_group
+    output = _new_node(tree, "ShaderNodeOutputMaterial", x + 250.0, y)
+    output.label = "Atmos In-Render Output (Cycles)"
+    output[TAG] = OUTPUT_TAG
+    output.target = "CYCLES"
+    if user_output is not None:
+        surface = user_output.inputs["Surface"]
+        if surface.is_linked:
+            tree.links.new(surface.links[0].from_socket, group.inputs["Surface"])
+        for name in ("Volume", "Displacement", "Thickness"):
+            _copy_input(tree, user_output, output, name)
+        if user_output.target == "CYCLES":  # two Cycles outputs: Blender renders the active one, so make ours
+            active = next((n for n in nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output
+                           and n != output), None)
+            if active is not None:
+                output[REACTIVATE_KEY] = active.name
+            output.is_active_output = True
+    tree.links.new(group.outputs["Shader"], output.inputs["Surface"])
+    target = group.inputs["Transparency" if invert else "Opacity"]
+    if opacity_socket is not None:
+        tree.links.new(opacity_socket, target)
+    elif opacity_value is not None:
+        target.default_value = opacity_value
+    cycles = getattr(material, "cycles", None)
+    if cycles is not None and hasattr(cycles, "emission_sampling") and not _emits(tree):
+        output[EMISSION_SAMPLING_KEY] = cycles.emission_sampling
+        cycles.emission_sampling = "NONE"
+
+
+def restore_material_settings(material, tagged) -> str | None:
+    """Undo what :func:`inject` changed outside its nodes; returns the user output to re-activate (or None)."""
+    reactivate = None
+    for node in tagged:
+        sampling = node.get(EMISSION_SAMPLING_KEY)
+        if sampling is not None and getattr(material, "cycles", None) is not None:
+            material.cycles.emission_sampling = sampling
+        reactivate = node.get(REACTIVATE_KEY) or reactivate
+    return reactivate
+
+
+def inject_scene(scene, surface_group, *, only_new: bool = False) -> materials.MaterialReport:
+    """Give every material of the scene's objects the in-render nodes, each once; report the skipped ones."""
+    report = materials.MaterialReport()
+    found, report.objects_without_material = materials.scene_materials(scene)
+    for material in found:
+        reason = materials.skip_reason(material)
+        if reason is not None:
+            report.skipped.append((material.name, reason))
+            continue
+        report.managed.append(material.name)
+        if only_new and any(n.get(TAG) == SURFACE_TAG for n in materials.atmos_nodes(material)):
+            continue
+        inject(material, surface_group)
+        report.injected.append(material.name)
+    return report
+
+
+# -- the domes ------------------------------------------------------------------------------------------
+
+
+def _dome_key(atmosphere, species: str) -> list[float]:
+    height = atmosphere.rayleigh_scale_height if species == "MOLECULES" else atmosphere.mie_scale_height
+    return [float(atmosphere.planet_radius), float(height)]
+
+
+def _fill_mesh(mesh, atmosphere, species: str) -> float:
+    """(Re)build ``mesh`` as the dome of ``species`` (m); returns the dome's horizontal radius (m)."""
+    planet, height = _dome_key(atmosphere, species)
+    dome = dome_mesh(planet, height)
+    mesh.clear_geometry()
+    mesh.from_pydata(dome.vertices.tolist(), [], dome.triangles.tolist())
+    mesh.update()
+    mesh[DOME_KEY] = [planet, height]
+    mesh["atmos_horizon_radius_m"] = dome.horizon_radius_m
+    return dome.horizon_radius_m
+
+
+def _dome_material(species: str):
+    name = DOME_NAMES[species]
+    material = bpy.data.materials.get(name)
+    if material is None or material.library is not None:
+        material = bpy.data.materials.new(name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        material.use_nodes = True
+    tree = material.node_tree
+    if tree.get("atmos_version") != _groups().IN_RENDER_GROUP_VERSION or tree.get("atmos_features") != species:
+        _groups().build_dome_volume(tree, species)
+    return material
+
+
+def _make_dome(scene, collection, species: str, atmosphere, scale: float):
+    mesh = bpy.data.meshes.new(DOME_NAMES[species])
+    _fill_mesh(mesh, atmosphere, species)
+    mesh.materials.append(_dome_material(species))
+    obj = bpy.data.objects.new(DOME_NAMES[species], mesh)
+    collection.objects.link(obj)
+    obj.scale = (scale, scale, scale)
+    obj.hide_select = True
+    obj.display_type = "BOUNDS"
+    obj.visible_diffuse = False
+    obj.visible_shadow = False
+    obj.visible_volume_scatter = False
+    obj.visible_camera = obj.visible_glossy = obj.visible_transmission = True
+    obj[TAG] = species
+    constraint = obj.constraints.new("COPY_LOCATION")
+    constraint.name = "Atmos: follow the camera"
+    constraint.target = scene.camera
+    return obj
+
+
+def _domes(scene) -> list:
+    collection = bpy.data.collections.get(_state(scene).get("collection", ""))
+    return [] if collection is None else [o for o in collection.objects if o.get(TAG) in DOME_NAMES]
+
+
+def sync_domes(scene, atmosphere, metres_per_unit: float) -> None:
+    """Keep the domes' shapes, scale and camera current (values and geometry only; cheap when unchanged)."""
+    scale = 1.0 / metres_per_unit
+    largest = 0.0
+    for obj in _domes(scene):
+        species = obj[TAG]
+        if list(obj.data.get(DOME_KEY, [])) != _dome_key(atmosphere, species):
+            _fill_mesh(obj.data, atmosphere, species)
+        largest = max(largest, float(obj.data.get("atmos_horizon_radius_m", 0.0)))
+        if any(abs(s - scale) > 1e-9 * scale for s in obj.scale):
+            obj.scale = (scale, scale, scale)
+        for constraint in obj.constraints:
+            if constraint.type == "COPY_LOCATION" and scene.camera is not None and constraint.target != scene.camera:
+                constraint.target = scene.camera
+    _raise_clip_end(scene, largest * scale * CLIP_MARGIN)
+
+
+def _raise_clip_end(scene, needed: float) -> None:
+    camera = scene.camera
+    if camera is None or camera.type != "CAMERA" or needed <= 0.0 or camera.data.clip_end >= needed:
+        return
+    state = scene[STATE_KEY]
+    clips = dict(state.get("clip_end", {}))
+    clips.setdefault(camera.data.name, camera.data.clip_end)
+    state["clip_end"] = clips
+    camera.data.clip_end = needed
+
+
+# -- the world ------------------------------------------------------------------------------------------
+
+
+def _world_output(tree):
+    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.get(TAG) not in WORLD_TAGS]
+    for candidates in ([n for n in outputs if n.target == "CYCLES" and n.is_active_output],
+                       [n for n in outputs if n.target == "CYCLES"],
+                       [n for n in outputs if n.target == "ALL" and n.is_active_output],
+                       [n for n in outputs if n.target == "ALL"]):
+        if candidates:
+            return candidates[0]
+    return None
+
+
+def world_nodes(world) -> list:
+    """The nodes in-render mode added to ``world``'s tree."""
+    if world is None or world.node_tree is None:
+        return []
+    return [n for n in world.node_tree.nodes if n.get(TAG) in WORLD_TAGS]
+
+
+def install_world(scene, features) -> str | None:
+    """Compensate the world for the domes on camera, glossy and transmission rays; a warning, or None."""
+    world = scene.world
+    if world is None or world.node_tree is None:
+        return None
+    remove_world(world)
+    tree = world.node_tree
+    output = _world_output(tree)
+    if output is None or not output.inputs["Surface"].is_linked:
+        return None
+    background = output.inputs["Surface"].links[0].from_node
+    if background.bl_idname != "ShaderNodeBackground":
+        return (f"World '{world.name}': its surface is not a Background shader, so in In-Render mode the sky is "
+                "seen through the dome's haze (darker toward the horizon); use the Atmos sky or Compositor mode")
+    x, y = output.location
+    sky = _new_node(tree, "ShaderNodeGroup", x - 200.0, y - 520.0)
+    sky.node_tree = _groups().ensure_sky_group(features)
+    sky.label = "Atmos In-Render Sky"
+    sky[TAG] = WORLD_TAGS[0]
+    ours = _new_node(tree, "ShaderNodeBackground", x, y - 520.0)
+    ours.label = "Atmos In-Render Background"
+    ours[TAG] = WORLD_TAGS[1]
+    world_output = _new_node(tree, "ShaderNodeOutputWorld", x + 200.0, y - 520.0)
+    world_output.label = "Atmos In-Render Output (Cycles)"
+    world_output.target = "CYCLES"
+    world_output[TAG] = WORLD_TAGS[2]
+    for name, target in (("Color", sky.inputs["Color"]), ("Strength", ours.inputs["Strength"])):
+        source = background.inputs[name]
+        if source.is_linked:
+            tree.links.new(source.links[0].from_socket, target)
+        else:
+            target.default_value = source.default_value
+    tree.links.new(sky.outputs["Color"], ours.inputs["Color"])
+    tree.links.new(ours.outputs["Background"], world_output.inputs["Surface"])
+    if output.target == "CYCLES":
+        active = next((n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.is_active_output
+                       and n != world_output), None)
+        if active is not None:
+            world_output[REACTIVATE_KEY] = active.name
+        world_output.is_active_output = True
+    return None
+
+
+def remove_world(world) -> None:
+    """Delete the world nodes of :func:`install_world` (re-activating the output that was active before)."""
+    tagged = world_nodes(world)
+    reactivate = next((n.get(REACTIVATE_KEY) for n in tagged if n.get(REACTIVATE_KEY)), None)
+    for node in tagged:
+        world.node_tree.nodes.remove(node)
+    if reactivate and world.node_tree.nodes.get(reactivate) is not None:
+        world.node_tree.nodes[reactivate].is_active_output = True
+
+
+# -- install / uninstall --------------------------------------------------------------------------------
+
+
+def install(scene, features, atmosphere, metres_per_unit: float) -> list[str]:
+    """Add the domes and the world compensation to ``scene`` (materials: :func:`inject_scene`); messages."""
+    messages: list[str] = []
+    if not is_installed(scene):
+        if scene.camera is None:
+            raise ValueError(f"scene '{scene.name}' has no camera: In-Render mode centres its haze domes on it")
+        collection = bpy.data.collections.new(COLLECTION_NAME)
+        scene.collection.children.link(collection)
+        scene[STATE_KEY] = {"collection": collection.name}
+        for species in DOME_NAMES:
+            _make_dome(scene, collection, species, atmosphere, 1.0 / metres_per_unit)
+    sync_domes(scene, atmosphere, metres_per_unit)
+    warning = install_world(scene, features)
+    if warning:
+        messages.append(warning)
+    messages.append("In-Render mode (Cycles): haze domes in collection "
+                    f"'{_state(scene)['collection']}', following camera '{scene.camera.name}'")
+    return messages
+
+
+def refresh_world(scene, features) -> None:
+    """Re-install the world compensation (after the sky was added to or removed from the world)."""
+    if is_installed(scene):
+        install_world(scene, features)
+
+
+def uninstall(scene) -> None:
+    """Remove the domes, the world nodes and the in-render groups; restore the camera's clip end."""
+    if not is_installed(scene):
+        return
+    state = _state(scene)
+    collection = bpy.data.collections.get(state.get("collection", ""))
+    if collection is not None:
+        for obj in list(collection.objects):
+            if obj.get(TAG) in DOME_NAMES:
+                mesh = obj.data
+                bpy.data.objects.remove(obj)
+                if mesh is not None and mesh.users == 0:
+                    bpy.data.meshes.remove(mesh)
+        if not collection.objects and not collection.children:
+            bpy.data.collections.remove(collection)
+    for species, name in DOME_NAMES.items():
+        material = bpy.data.materials.get(name)
+        if material is not None and material.users == 0:
+            bpy.data.materials.remove(material)
+    for world in bpy.data.worlds:
+        remove_world(world)
+    for camera_name, clip_end in state.get("clip_end", {}).items():
+        camera = bpy.data.cameras.get(camera_name)
+        if camera is not None:
+            camera.clip_end = clip_end
+    del scene[STATE_KEY]
+
+
+def remove_unused_groups() -> None:
+    """Delete the in-render groups once nothing uses them (no orphan data after disabling)."""
+    groups = _groups()
+    aerial = import_sibling("node_groups").aerial_perspective
+    for name in (groups.SURFACE_GROUP_NAME, groups.SKY_GROUP_NAME, aerial.SEGMENT_GROUP_NAME):
+        tree = bpy.data.node_groups.get(name)
+        if tree is not None and tree.users == 0:
+            bpy.data.node_groups.remove(tree)

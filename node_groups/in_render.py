@@ -1,0 +1,204 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Cycles in-render mode: the aerial perspective applied per ray segment, exactly, inside the render.
+
+Three pieces, all reading the scene-property parameters of :mod:`.parameters`:
+
+- the dome volume (:func:`build_dome_volume`): a material for the closed dome mesh of one species
+  (``atmos_addon.physics.dome_mesh``) holding a homogeneous Volume Absorption of coefficient
+  sigma = beta_R (molecules) or beta_M + beta_M,abs (aerosols), per channel, in 1/scene unit. Cycles
+  integrates a homogeneous absorber in closed form, so every camera, glossy and transmission ray loses
+  exactly exp(-sum_i sigma_i b_i) with b_i its length inside dome i: for a ray from the camera
+  b_i = min(s, R_i(v)), the extinction F_ex of the aerial group (:mod:`.aerial_perspective`);
+- the surface emission (:data:`SURFACE_GROUP_NAME`): each managed material adds, on camera, glossy and
+  transmission rays only, an emission L_in / F_ex of the segment the ray just travelled (the "Ray Segment"
+  aerial group: s = Light Path > Ray Length, v = -Incoming), weighted by the surface's opacity. The dome
+  attenuates it by the same F_ex, so the eye receives F_ex L_0 + L_in per segment, and a reflected or
+  refracted segment composes with the one before it: F_1 (F_2 L_0 + L_2) + L_1;
+- the sky compensation (:data:`SKY_GROUP_NAME`): a sky ray from the camera leaves the domes attenuated by
+  F_ex(R_R, R_M), the sky's own extinction; on camera, glossy and transmission rays the world radiance is
+  multiplied by exp(min(tau_dome, :data:`MAX_COMPENSATED_OPTICAL_DEPTH`)) so the camera sees the sky
+  unchanged (exact for camera rays; a reflected sky ray from a point p leaves the camera-centred domes after
+  a different length, the residual measured in ``docs/in_render.md``).
+
+Diffuse and shadow rays see neither the domes (ray visibility off) nor the emission: the sun lamp carries the
+ground-level sunlight, and the haze must not light the scene. Nothing here runs Python at render time, so a
+.blend renders the same without the add-on.
+"""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+
+from . import parameters
+from .aerial_perspective import AerialFeatures, ensure_aerial_perspective_group
+from .dome import dome_distances, view_direction
+from .graph import GraphBuilder, Socket
+
+SURFACE_GROUP_NAME = "Atmos In-Render Surface"
+SKY_GROUP_NAME = "Atmos In-Render Sky"
+#: Bump when a tree these builders make changes; stale trees are rebuilt in place.
+IN_RENDER_GROUP_VERSION = 1
+#: The compensation exp(tau) is capped here: exp(60) = 1.1e26 keeps a bright sky (1e5 W/(m^2 sr), the sun's
+#: disk) times the factor below float32's 3.4e38, and exp(-60) = 8.8e-27 above its smallest normal 1.2e-38.
+#: Where the real depth is larger (the horizon in thick haze) the in-render sky is darker than the sky.
+MAX_COMPENSATED_OPTICAL_DEPTH = 60.0
+#: Smallest F_ex the surface emission divides by: exp(-60), for the same reason.
+MIN_TRANSMITTANCE = math.exp(-MAX_COMPENSATED_OPTICAL_DEPTH)
+SPECIES = ("MOLECULES", "AEROSOLS")
+_VERSION_KEY = "atmos_version"
+_FEATURES_KEY = "atmos_features"
+
+
+def _ray_mask(g: GraphBuilder) -> Socket:
+    """1 on camera, glossy and transmission rays, 0 on diffuse, shadow and light-sampling evaluations."""
+    path = g.node("ShaderNodeLightPath", label="Light Path")
+    camera_or_glossy = g.max(path.outputs["Is Camera Ray"], path.outputs["Is Glossy Ray"])
+    return g.max(camera_or_glossy, path.outputs["Is Transmission Ray"], label="camera | glossy | transmission")
+
+
+def _stamp(tree: bpy.types.NodeTree, key: str) -> None:
+    tree[_VERSION_KEY] = IN_RENDER_GROUP_VERSION
+    tree[_FEATURES_KEY] = key
+
+
+def _is_current(tree: bpy.types.NodeTree, key: str) -> bool:
+    return tree.get(_VERSION_KEY) == IN_RENDER_GROUP_VERSION and tree.get(_FEATURES_KEY) == key
+
+
+def _group(name: str) -> bpy.types.ShaderNodeTree:
+    tree = bpy.data.node_groups.get(name)
+    if tree is None:
+        return bpy.data.node_groups.new(name, "ShaderNodeTree")
+    if tree.bl_idname != "ShaderNodeTree":
+        raise TypeError(f'Node group "{name}" exists but is a {tree.bl_idname}, not a shader node group; '
+                        f"rename or delete it, then apply Atmos again")
+    return tree
+
+
+def _socket(tree, name: str, in_out: str, socket_type: str, description: str, default=None):
+    socket = tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+    socket.description = description
+    if default is not None:
+        socket.default_value = default
+        socket.min_value, socket.max_value = 0.0, 1.0
+    return socket
+
+
+# -- the surface emission -------------------------------------------------------------------------------
+
+
+def build_surface_group(tree: bpy.types.ShaderNodeTree, segment_group: bpy.types.ShaderNodeTree) -> None:
+    """Surface + Emission(L_in / max(F_ex, exp(-60)) * alpha * ray mask), alpha = Opacity (1 - Transparency)."""
+    tree.nodes.clear()
+    tree.interface.clear()
+    _socket(tree, "Surface", "INPUT", "NodeSocketShader", "The material's own surface shader")
+    _socket(tree, "Opacity", "INPUT", "NodeSocketFloat", "Surface opacity (Principled Alpha)", 1.0)
+    _socket(tree, "Transparency", "INPUT", "NodeSocketFloat", "Transparent share of a Mix Shader", 0.0)
+    _socket(tree, "Shader", "OUTPUT", "NodeSocketShader", "Surface plus the segment's in-scattering")
+    g = GraphBuilder(tree)
+    group_in = g.node("NodeGroupInput", label="Group Input")
+    aerial = g.node("ShaderNodeGroup", label="Atmos Aerial Perspective (Ray Segment)", node_tree=segment_group)
+    f_ex = g.max(aerial.outputs["Transmittance"], (MIN_TRANSMITTANCE,) * 3, label="max(F_ex, exp(-60))")
+    radiance = g.div(aerial.outputs["Inscattering"], f_ex, label="L_in / F_ex")
+    alpha = g.mul(group_in.outputs["Opacity"], g.sub(1.0, group_in.outputs["Transparency"]), label="alpha")
+    weight = g.mul(alpha, _ray_mask(g), label="alpha * ray mask")
+    emission = g.node("ShaderNodeEmission", label="In-scattering")
+    g._feed(emission, emission.inputs["Color"], g.scale(radiance, weight, label="emitted"))
+    emission.inputs["Strength"].default_value = 1.0
+    add = g.node("ShaderNodeAddShader", label="Surface + in-scattering")
+    g._feed(add, add.inputs[0], group_in.outputs["Surface"])
+    g._feed(add, add.inputs[1], emission.outputs["Emission"])
+    output = g.node("NodeGroupOutput", label="Group Output")
+    tree.links.new(add.outputs["Shader"], output.inputs["Shader"])
+    g.set_depth(output, g.max_depth + 1)
+    g.layout()
+    _stamp(tree, segment_group.get(_FEATURES_KEY, ""))
+
+
+def ensure_surface_group(features: AerialFeatures) -> bpy.types.ShaderNodeTree:
+    """Get or (re)build the "Atmos In-Render Surface" group (and the Ray Segment aerial group inside it)."""
+    segment_group = ensure_aerial_perspective_group(features, distance="RAY")
+    tree = _group(SURFACE_GROUP_NAME)
+    if not (_is_current(tree, features.key)
+            and any(n.bl_idname == "ShaderNodeGroup" and n.node_tree == segment_group for n in tree.nodes)):
+        build_surface_group(tree, segment_group)
+    return tree
+
+
+# -- the sky compensation -------------------------------------------------------------------------------
+
+
+def dome_optical_depth(g: GraphBuilder, features: AerialFeatures, view_z: Socket) -> Socket:
+    """tau_dome = beta_R R_R + beta_M,ex R_M per channel (only the terms ``features`` keep)."""
+    r_rayleigh, r_mie = dome_distances(g, view_z)
+    tau = g.scale(g.attribute(parameters.BETA_RAYLEIGH), r_rayleigh, label="beta_R R_R")
+    mie_terms = ([parameters.BETA_MIE] if features.mie else []) + \
+        ([parameters.BETA_MIE_ABSORPTION] if features.absorption else [])
+    for name in mie_terms:
+        tau = g.multiply_add(g.attribute(name), r_mie, tau, label=f"+ {name} R_M")
+    return tau
+
+
+def build_sky_group(tree: bpy.types.ShaderNodeTree, features: AerialFeatures) -> None:
+    """Color * exp(min(tau_dome, 60)) on camera, glossy and transmission rays; Color unchanged on others."""
+    tree.nodes.clear()
+    tree.interface.clear()
+    _socket(tree, "Color", "INPUT", "NodeSocketColor", "The world's radiance (the sky)")
+    _socket(tree, "Color", "OUTPUT", "NodeSocketColor", "The radiance to emit so that the camera sees Color")
+    g = GraphBuilder(tree)
+    group_in = g.node("NodeGroupInput", label="Group Input")
+    _, _, view_z = g.separate(view_direction(g), label="v")
+    tau = g.min(dome_optical_depth(g, features, view_z), (MAX_COMPENSATED_OPTICAL_DEPTH,) * 3, label="min(tau, 60)")
+    factor = g.per_channel(g.exp, tau, label="exp(tau)")
+    gain = g.multiply_add(g.sub(factor, (1.0, 1.0, 1.0)), _ray_mask(g), (1.0, 1.0, 1.0),
+                          label="compensation 1 + mask (exp(tau) - 1)")
+    output = g.node("NodeGroupOutput", label="Group Output")
+    tree.links.new(g.mul(group_in.outputs["Color"], gain, label="Color * compensation"), output.inputs["Color"])
+    g.set_depth(output, g.max_depth + 1)
+    g.layout()
+    _stamp(tree, features.key)
+
+
+def ensure_sky_group(features: AerialFeatures) -> bpy.types.ShaderNodeTree:
+    """Get or (re)build the "Atmos In-Render Sky" compensation group."""
+    tree = _group(SKY_GROUP_NAME)
+    if not _is_current(tree, features.key):
+        build_sky_group(tree, features)
+    return tree
+
+
+# -- the dome volume ------------------------------------------------------------------------------------
+
+
+def build_dome_volume(tree: bpy.types.ShaderNodeTree, species: str) -> None:
+    """A material tree: Volume Absorption with density max_c(sigma) and colour 1 - sigma / density.
+
+    Cycles' absorption coefficient is density * (1 - colour) per channel, so this is sigma exactly, in
+    1/scene unit: sigma (1/m) times metres per unit. Uniform inputs only (view-layer attributes), so Cycles
+    treats the volume as homogeneous and integrates it in closed form.
+    """
+    if species not in SPECIES:
+        raise ValueError(f"species must be one of {SPECIES}; got {species!r}")
+    tree.nodes.clear()
+    g = GraphBuilder(tree)
+    if species == "MOLECULES":
+        sigma = g.attribute(parameters.BETA_RAYLEIGH)
+    else:
+        sigma = g.add(g.attribute(parameters.BETA_MIE), g.attribute(parameters.BETA_MIE_ABSORPTION),
+                      label="beta_M + beta_M,abs")
+    sigma = g.scale(sigma, g.attribute(parameters.METRES_PER_UNIT, output="Fac"), label="sigma (1/unit)")
+    r, gr, b = g.separate(sigma, label="sigma")
+    density = g.max(g.max(r, gr), b, label="density = max sigma")
+    colour = g.sub((1.0, 1.0, 1.0), g.div(sigma, g.combine(density, density, density)), label="1 - sigma / density")
+    absorption = g.node("ShaderNodeVolumeAbsorption", label="Dome absorption")
+    g._feed(absorption, absorption.inputs["Color"], colour)
+    g._feed(absorption, absorption.inputs["Density"], density)
+    output = g.node("ShaderNodeOutputMaterial", label="Material Output")
+    output.target = "CYCLES"
+    tree.links.new(absorption.outputs["Volume"], output.inputs["Volume"])
+    g.set_depth(output, g.max_depth + 1)
+    g.layout()
+    tree[_VERSION_KEY] = IN_RENDER_GROUP_VERSION
+    tree[_FEATURES_KEY] = species
