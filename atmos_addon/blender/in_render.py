@@ -376,6 +376,15 @@ def remove_world(world) -> None:
 # -- install / uninstall --------------------------------------------------------------------------------
 
 
+def horizon_optical_depth(atmosphere) -> float:
+    """The largest per-channel optical depth through the domes at the horizon, beta_R R_R(0) + beta_M,ex R_M(0)."""
+    from ..physics.dome_mesh import dome_radius
+
+    r_rayleigh = float(dome_radius(0.0, atmosphere.planet_radius, atmosphere.rayleigh_scale_height))
+    r_mie = float(dome_radius(0.0, atmosphere.planet_radius, atmosphere.mie_scale_height))
+    return float(max(atmosphere.rayleigh_scattering * r_rayleigh + atmosphere.mie_extinction * r_mie))
+
+
 def install(scene, features, atmosphere, metres_per_unit: float) -> list[str]:
     """Add the domes and the world compensation to ``scene`` (materials: :func:`inject_scene`); messages."""
     messages: list[str] = []
@@ -388,6 +397,12 @@ def install(scene, features, atmosphere, metres_per_unit: float) -> list[str]:
         for species in DOME_NAMES:
             _make_dome(scene, collection, species, atmosphere, 1.0 / metres_per_unit)
     sync_domes(scene, atmosphere, metres_per_unit)
+    depth = horizon_optical_depth(atmosphere)
+    limit = _groups().MAX_COMPENSATED_OPTICAL_DEPTH
+    if depth > limit:
+        messages.append(f"In-Render: the haze is so thick that the horizon's optical depth ({depth:.0f}) passes "
+                        f"{limit:.0f}, where the sky's compensation stops: the sky within a few degrees of the "
+                        "horizon renders darker than in Compositor mode")
     warning = install_world(scene, features)
     if warning:
         messages.append(warning)
