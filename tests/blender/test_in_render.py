@@ -21,6 +21,7 @@ import pytest
 from mathutils import Vector
 
 import atmos_addon
+import atmos_addon.api
 from atmos_addon.blender import effect, in_render, materials, sync
 from atmos_addon.physics import sun_irradiance_ground
 from atmos_addon.physics.aerial_perspective import extinction, inscattering
@@ -385,3 +386,13 @@ def test_in_render_falls_back_on_old_blender() -> None:
     assert "4.5" in in_render.unavailable_reason(scene)
     assert any("4.5" in line for line in report.messages)
     assert any(n.get(materials.TAG) for n in bpy.data.materials["Near"].node_tree.nodes)
+
+
+@needs_in_render
+def test_thick_haze_warns_where_the_sky_compensation_stops() -> None:
+    scene, _sun = _scene()
+    scene.atmos.render_mode = "IN_RENDER"
+    report = atmos_addon.api.enable(scene, preset="overcast")
+    assert any("optical depth (74)" in line for line in report.messages), report.messages
+    report = atmos_addon.api.enable(scene, preset="clear")
+    assert not any("optical depth" in line for line in report.messages)
