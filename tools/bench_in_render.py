@@ -18,7 +18,9 @@ Each repeat renders the three once, the order rotated from one repeat to the nex
 machine (other load, thermal) falls on all three alike; one untimed 1-sample render comes first (kernel
 loading). The time is the wall time of ``bpy.ops.render.render`` (scene sync, BVH build, path tracing and,
 in Compositor mode, the compositor; no file is written); the switch between configurations is not timed.
-The table gives the median over the repeats, the ratio of medians to "off", and every single time. The dome
+The CPU time of the process over the same call (``time.process_time``: all render threads) is given too: it
+moves less than the wall time when other work shares the cores. The table gives the medians over the
+repeats, their ratios to "off", and every single wall time. The dome
 rows give the vertex and triangle counts of the objects in the "Atmos In-Render" collection.
 Not a test: nothing fails.
 """
@@ -90,13 +92,14 @@ def configure(scene, config: str, preset: str) -> None:
             api.disable(scene)
         api.enable(scene, preset=preset, render_mode="IN_RENDER")
         if not in_render.is_installed(scene):
-            raise SystemExit("In-Render mode did not install (is the engine Cycles?)")
+            raise SystemExit(f"In-Render mode did not install: {in_render.unavailable_reason(scene)}")
 
 
-def timed_render(scene) -> float:
-    began = time.perf_counter()
+def timed_render(scene) -> tuple[float, float]:
+    """(wall time, CPU time of this process: all render threads) of one render, in s."""
+    began, began_cpu = time.perf_counter(), time.process_time()
     bpy.ops.render.render(write_still=False, scene=scene.name)
-    return time.perf_counter() - began
+    return time.perf_counter() - began, time.process_time() - began_cpu
 
 
 def dome_sizes() -> list[tuple[str, int, int]]:
@@ -107,14 +110,16 @@ def dome_sizes() -> list[tuple[str, int, int]]:
             if obj.type == "MESH"]
 
 
-def markdown(times: dict[str, list[float]], domes, args: argparse.Namespace) -> str:
-    base = statistics.median(times["off"])
-    lines = [f"| configuration (Blender {bpy.app.version_string}) | median render time | ratio to off "
-             f"| single renders |", "|---|---:|---:|---|"]
+def markdown(times: dict[str, list[tuple[float, float]]], domes) -> str:
+    wall = {config: [t[0] for t in runs] for config, runs in times.items()}
+    cpu = {config: [t[1] for t in runs] for config, runs in times.items()}
+    base, base_cpu = statistics.median(wall["off"]), statistics.median(cpu["off"])
+    lines = [f"| configuration (Blender {bpy.app.version_string}) | median wall time | ratio to off "
+             f"| median CPU time | ratio to off | single renders, wall |", "|---|---:|---:|---:|---:|---|"]
     for config in CONFIGS:
-        median = statistics.median(times[config])
-        lines.append(f"| {config} | {median:.2f} s | {median / base:.2f} | "
-                     + ", ".join(f"{t:.2f}" for t in times[config]) + " s |")
+        median, median_cpu = statistics.median(wall[config]), statistics.median(cpu[config])
+        lines.append(f"| {config} | {median:.2f} s | {median / base:.2f} | {median_cpu:.2f} s | "
+                     f"{median_cpu / base_cpu:.2f} | " + ", ".join(f"{t:.2f}" for t in wall[config]) + " s |")
     lines += ["", "| dome object | vertices | triangles |", "|---|---:|---:|"]
     lines += [f"| {name} | {vertices} | {triangles} |" for name, vertices, triangles in domes]
     return "\n".join(lines)
@@ -136,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     scene.cycles.samples = 1
     timed_render(scene)  # kernel loading, untimed
     scene.cycles.samples = samples
-    times: dict[str, list[float]] = {config: [] for config in CONFIGS}
+    times: dict[str, list[tuple[float, float]]] = {config: [] for config in CONFIGS}
     domes = []
     for repeat in range(args.repeats):
         order = CONFIGS[repeat % 3:] + CONFIGS[:repeat % 3]
@@ -144,15 +149,16 @@ def main(argv: list[str] | None = None) -> int:
             configure(scene, config, args.preset)
             if config == "In-Render":
                 domes = dome_sizes()
-            seconds = timed_render(scene)
-            times[config].append(seconds)
-            print(f"repeat {repeat + 1}/{args.repeats} {config}: {seconds:.2f} s", flush=True)
+            seconds, cpu_seconds = timed_render(scene)
+            times[config].append((seconds, cpu_seconds))
+            print(f"repeat {repeat + 1}/{args.repeats} {config}: {seconds:.2f} s wall, {cpu_seconds:.2f} s CPU",
+                  flush=True)
     width, height = args.resolution
     print(f"\nBlender {bpy.app.version_string}, valley {width}x{height} px, {args.samples} samples (adaptive off), "
           f"seed {args.seed}, denoising off, {args.threads} threads, preset '{args.preset}'; "
           f"{os.cpu_count()} CPU cores (nproc), {cpu_model()}, {platform.system()} {platform.release()}; "
-          f"load average before the run {load_before}\n")
-    print(markdown(times, domes, args))
+          f"load average before the run {load_before}, after {' / '.join(f'{v:.1f}' for v in os.getloadavg())}\n")
+    print(markdown(times, domes))
     atmos_addon.unregister()
     return 0
 

@@ -5,11 +5,16 @@
 
 In In-Render mode the world is multiplied by exp(tau_dome(d)) on camera, glossy and transmission rays, the
 optical depth of the camera-centred domes along d. A sky ray reflected at a point p leaves the domes after
-l_i(p, d) instead of R_i(d), so the reflected sky is too bright by the factor
+l_i(p, d) instead of R_i(d), so the reflected sky is off by the factor
 
-    r = exp(sum_i sigma_i (R_i(d) - l_i(p, d))),   about exp(beta_ex dot(p - camera, d)) while |p - camera| << R_i
+    r = exp(sum_i sigma_i (R_i(d) - l_i(p, d)))
+      ~ exp(sum_i sigma_i (p - c) . n_i / (n_i . d))     to first order in |p - c| / R_i
 
-(sigma_R = beta_R for the molecules' dome, sigma_M = beta_M + beta_M,abs for the aerosols'). This tool measures it.
+(sigma_R = beta_R for the molecules' dome, sigma_M = beta_M + beta_M,abs for the aerosols'; n_i the dome's
+normal where the ray leaves it). Where the dome is locally a sphere (n_i = d) this is exp(beta_ex dot(p - c, d));
+where it is locally flat (n_i = up, the dome high above the ground: R_i(e) ~ H_i / sin e) it is
+exp(-sum_i sigma_i h / sin e), h the height of the camera above p, e the reflected ray's elevation: a lake
+below the camera reflects the sky *darker*. This tool measures r and compares it with both forms.
 
 Scene: ``sample_scenes/valley.py`` with its lake made a perfect mirror (Glossy BSDF, white, roughness 0) and
 extended from the shore (y = -5 m) to the foot of the first ridge (y = 1000 m), x = +-1000 m, at the lake's
@@ -22,8 +27,10 @@ T and L (the per-material emission and the dome along the first segment), so
 
 - the pixel error In-Render / reference - 1 is the headline number (what a user sees);
 - the sky term's residual is measured as r - 1 = (In-Render - reference) / (reference - L), L the compositor's
-  in-scattering AOV, and compared with its prediction: r from the dome geometry (l_i solved on the analytic
-  dome R_i(e) of ``physics.dome_mesh``, pixel-centre rays) and the approximation exp(beta_ex dot(p - c, d)).
+  in-scattering AOV, and compared with its prediction: r from the dome geometry (l_i solved by bisection on
+  the analytic dome R_i(e) of ``physics.dome_mesh``, for the pixel-centre rays) and the sphere form
+  exp(beta_ex dot(p - c, d)). Both in the blue channel (the largest coefficients), signed: mean and the value
+  of largest magnitude.
 
 Pixels: the lake pixels that reflect sky, found by ray casts through the pixel centres before Atmos is enabled
 (camera ray hits the mirror, reflected ray hits nothing), eroded by ``margin`` px so that no pixel-filter
@@ -32,8 +39,8 @@ erosion), In-Render against Compositor: the two modes' agreement where no reflec
 Errors are relative, max over RGB; mean and max over the pixels.
 
 Cameras: "valley" is the sample's camera (2 m above the ground, 2.3 m above the lake, 3 deg up); there the
-ridges hide the reflected sky except within about 16 m of the shore. "raised" puts the camera 50 m above the
-lake, 10 deg down, so the lake reflects sky out to about 370 m: the residual grows with that distance.
+ridges hide the reflected sky except within about 25 m of the shore. "raised" puts the camera 50 m above the
+lake, 10 deg down, so the lake reflects sky out to a few hundred metres: the residual grows with h / sin e.
 """
 
 from __future__ import annotations
@@ -108,6 +115,7 @@ def build(args: argparse.Namespace, camera_name: str):
     cycles.use_adaptive_sampling = False
     cycles.use_denoising = False
     cycles.seed = 0
+    bpy.context.view_layer.update()  # the camera's matrix_world and the depsgraph the ray casts use
     return scene
 
 
@@ -222,9 +230,17 @@ def predicted_residual(scene, origin: np.ndarray, points: np.ndarray, out: np.nd
 
 
 def _stats(values: np.ndarray) -> str:
+    """Mean and max of non-negative errors, in %."""
     if values.size == 0:
         return "n/a | n/a"
     return f"{values.mean():.3%} | {values.max():.3%}"
+
+
+def _signed(values: np.ndarray) -> str:
+    """Mean and the value of largest magnitude (signed), in %."""
+    if values.size == 0:
+        return "n/a | n/a"
+    return f"{values.mean():+.3%} | {values[np.argmax(np.abs(values))]:+.3%}"
 
 
 def measure(args: argparse.Namespace, camera_name: str) -> dict:
@@ -240,7 +256,7 @@ def measure(args: argparse.Namespace, camera_name: str) -> dict:
     reference = render(scene)
     scene.atmos.render_mode = "IN_RENDER"
     if not in_render.is_installed(scene):
-        raise RuntimeError("In-Render mode did not install")
+        raise SystemExit(f"In-Render mode did not install: {in_render.unavailable_reason(scene)}")
     hazed = render(scene)
     finite = {"reference": int(np.sum(~np.isfinite(reference))), "In-Render": int(np.sum(~np.isfinite(hazed)))}
     pixel_error = np.max(np.abs(hazed / reference - 1.0), axis=-1)
@@ -251,10 +267,8 @@ def measure(args: argparse.Namespace, camera_name: str) -> dict:
     distance = np.linalg.norm(p - origin, axis=-1)
     result = dict(camera=camera_name, lake_px=int(lake.sum()), sky_px=int(sky.sum()),
                   distance=(float(distance.min()), float(distance.max())) if distance.size else None,
-                  pixel=pixel_error[lake], measured=np.max(np.abs(measured_r[lake]), axis=-1),
-                  exact=np.max(exact - 1.0, axis=-1), simple=np.max(simple - 1.0, axis=-1),
-                  measured_blue=measured_r[lake][:, 2], exact_blue=exact[:, 2] - 1.0,
-                  baseline=pixel_error[sky], nonfinite=finite, seconds=time.perf_counter() - began)
+                  pixel=pixel_error[lake], measured=measured_r[lake][:, 2], exact=exact[:, 2] - 1.0,
+                  simple=simple[:, 2] - 1.0, baseline=pixel_error[sky], nonfinite=finite, seconds=time.perf_counter() - began)
     if args.save_images:
         np.savez_compressed(Path(args.save_images) / f"reflection_{camera_name}.npz", reference=reference,
                             in_render=hazed, inscattering=inscattering, lake=lake, sky=sky)
@@ -263,13 +277,14 @@ def measure(args: argparse.Namespace, camera_name: str) -> dict:
 
 def markdown(results: list[dict]) -> str:
     lines = ["| camera | sky-reflecting lake px | lake distance (m) | pixel error, In-Render vs reference: mean | max "
-             "| sky-term residual r - 1, measured: mean | max | predicted (dome geometry): mean | max "
-             "| exp(beta_ex dot(p - c, d)) - 1: mean | max | direct sky px | baseline (direct sky): mean | max |",
+             "| r - 1 (blue), measured: mean | extreme | predicted, dome geometry: mean | extreme "
+             "| sphere form exp(beta_ex dot(p - c, d)) - 1: mean | extreme | direct sky px "
+             "| baseline (direct sky): mean | max |",
              "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in results:
         span = "n/a" if r["distance"] is None else f"{r['distance'][0]:.0f}-{r['distance'][1]:.0f}"
-        lines.append(f"| {r['camera']} | {r['lake_px']} | {span} | {_stats(r['pixel'])} | {_stats(r['measured'])} | "
-                     f"{_stats(r['exact'])} | {_stats(r['simple'])} | {r['sky_px']} | {_stats(r['baseline'])} |")
+        lines.append(f"| {r['camera']} | {r['lake_px']} | {span} | {_stats(r['pixel'])} | {_signed(r['measured'])} | "
+                     f"{_signed(r['exact'])} | {_signed(r['simple'])} | {r['sky_px']} | {_stats(r['baseline'])} |")
     return "\n".join(lines)
 
 
@@ -288,10 +303,10 @@ def main(argv: list[str] | None = None) -> int:
     for camera_name in args.cameras.split(","):
         result = measure(args, camera_name.strip())
         results.append(result)
-        blue = result["measured_blue"] - result["exact_blue"]
-        print(f"{camera_name}: {result['seconds']:.0f} s; non-finite values {result['nonfinite']}; blue channel "
-              f"measured - predicted r: mean {blue.mean() if blue.size else float('nan'):+.2e}, "
-              f"max |.| {np.abs(blue).max() if blue.size else float('nan'):.2e}", flush=True)
+        gap = result["measured"] - result["exact"]
+        print(f"{camera_name}: {result['seconds']:.0f} s; non-finite values {result['nonfinite']}; blue channel, "
+              f"measured - predicted (dome geometry) r: mean {gap.mean() if gap.size else float('nan'):+.2e}, "
+              f"max |.| {np.abs(gap).max() if gap.size else float('nan'):.2e}", flush=True)
     width, height = args.resolution
     print(f"\nBlender {bpy.app.version_string}, valley with a mirror lake, {width}x{height} px, {args.samples} samples, "
           f"preset '{args.preset}', margin {args.margin} px; {platform.system()}, {os.cpu_count()} cores\n")
