@@ -22,7 +22,12 @@ The CPU time of the process over the same call (``time.process_time``: all rende
 moves less than the wall time when other work shares the cores. The table gives the medians over the
 repeats, their ratios to "off", and every single wall time. The dome
 rows give the vertex and triangle counts of the objects in the "Atmos In-Render" collection.
-Not a test: nothing fails.
+
+``--breakdown`` adds renders (after the repeats, ``repeats`` rounds, medians) that split the cost: each
+configuration at 1 sample (what does not grow with the samples: sync, BVH, compositor), In-Render with the
+two domes hidden from the render (``hide_render``: the materials' emission and the compensated world without
+the volumes), and Compositor mode with compositing off (the AOVs without the compositor). Not a test:
+nothing fails.
 """
 
 from __future__ import annotations
@@ -110,6 +115,35 @@ def dome_sizes() -> list[tuple[str, int, int]]:
             if obj.type == "MESH"]
 
 
+def breakdown(scene, args: argparse.Namespace) -> str:
+    """Renders that split the cost (module docstring), ``repeats`` rounds; a markdown table of medians."""
+    times: dict[str, list[tuple[float, float]]] = {}
+    for _ in range(args.repeats):
+        for config in CONFIGS:
+            configure(scene, config, args.preset)
+            scene.cycles.samples = 1
+            times.setdefault(f"{config}, 1 sample", []).append(timed_render(scene))
+        scene.cycles.samples = args.samples
+        configure(scene, "In-Render", args.preset)
+        domes = bpy.data.collections[in_render.COLLECTION_NAME].objects
+        for obj in domes:
+            obj.hide_render = True
+        times.setdefault(f"In-Render, domes hidden, {args.samples} samples", []).append(timed_render(scene))
+        for obj in domes:
+            obj.hide_render = False
+        configure(scene, "Compositor", args.preset)
+        scene.render.use_compositing = False
+        times.setdefault(f"Compositor, compositing off, {args.samples} samples", []).append(timed_render(scene))
+        scene.render.use_compositing = True
+    lines = ["| render (breakdown) | median wall time | median CPU time | single renders, wall |",
+             "|---|---:|---:|---|"]
+    for label, runs in times.items():
+        lines.append(f"| {label} | {statistics.median(t[0] for t in runs):.2f} s | "
+                     f"{statistics.median(t[1] for t in runs):.2f} s | "
+                     + ", ".join(f"{t[0]:.2f}" for t in runs) + " s |")
+    return "\n".join(lines)
+
+
 def markdown(times: dict[str, list[tuple[float, float]]], domes) -> str:
     wall = {config: [t[0] for t in runs] for config, runs in times.items()}
     cpu = {config: [t[1] for t in runs] for config, runs in times.items()}
@@ -133,6 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=2, help="Cycles render threads")
     parser.add_argument("--preset", default="clear")
+    parser.add_argument("--breakdown", action="store_true", help="add the single renders that split the cost")
     args = parser.parse_args(argv)
     atmos_addon.register()
     load_before = " / ".join(f"{v:.1f}" for v in os.getloadavg())
@@ -153,12 +188,15 @@ def main(argv: list[str] | None = None) -> int:
             times[config].append((seconds, cpu_seconds))
             print(f"repeat {repeat + 1}/{args.repeats} {config}: {seconds:.2f} s wall, {cpu_seconds:.2f} s CPU",
                   flush=True)
+    extra = breakdown(scene, args) if args.breakdown else None
     width, height = args.resolution
     print(f"\nBlender {bpy.app.version_string}, valley {width}x{height} px, {args.samples} samples (adaptive off), "
           f"seed {args.seed}, denoising off, {args.threads} threads, preset '{args.preset}'; "
           f"{os.cpu_count()} CPU cores (nproc), {cpu_model()}, {platform.system()} {platform.release()}; "
           f"load average before the run {load_before}, after {' / '.join(f'{v:.1f}' for v in os.getloadavg())}\n")
     print(markdown(times, domes))
+    if extra:
+        print("\n" + extra)
     atmos_addon.unregister()
     return 0
 

@@ -199,7 +199,7 @@ def render(scene) -> np.ndarray:
 
 
 def _exit_distance(q0: np.ndarray, d: np.ndarray, planet: float, scale_height: float) -> np.ndarray:
-    """l >= 0 with |q0 + l d| = R(elevation of q0 + l d): where a ray from q0 (relative to the camera) leaves the dome."""
+    """l >= 0 with |q0 + l d| = R(elevation of q0 + l d): where a ray from q0 (camera-relative) leaves the dome."""
     low = np.zeros(q0.shape[:-1])
     high = np.full(q0.shape[:-1], 2.0 * float(dome_radius(0.0, planet, scale_height)) + 1.0)
     for _ in range(80):
@@ -268,7 +268,8 @@ def measure(args: argparse.Namespace, camera_name: str) -> dict:
     result = dict(camera=camera_name, lake_px=int(lake.sum()), sky_px=int(sky.sum()),
                   distance=(float(distance.min()), float(distance.max())) if distance.size else None,
                   pixel=pixel_error[lake], measured=measured_r[lake][:, 2], exact=exact[:, 2] - 1.0,
-                  simple=simple[:, 2] - 1.0, baseline=pixel_error[sky], nonfinite=finite, seconds=time.perf_counter() - began)
+                  simple=simple[:, 2] - 1.0, baseline=pixel_error[sky], nonfinite=finite,
+                  seconds=time.perf_counter() - began)
     if args.save_images:
         np.savez_compressed(Path(args.save_images) / f"reflection_{camera_name}.npz", reference=reference,
                             in_render=hazed, inscattering=inscattering, lake=lake, sky=sky)
@@ -308,7 +309,8 @@ def main(argv: list[str] | None = None) -> int:
               f"measured - predicted (dome geometry) r: mean {gap.mean() if gap.size else float('nan'):+.2e}, "
               f"max |.| {np.abs(gap).max() if gap.size else float('nan'):.2e}", flush=True)
     width, height = args.resolution
-    print(f"\nBlender {bpy.app.version_string}, valley with a mirror lake, {width}x{height} px, {args.samples} samples, "
+    print(f"\nBlender {bpy.app.version_string}, valley with a mirror lake, {width}x{height} px, "
+          f"{args.samples} samples, "
           f"preset '{args.preset}', margin {args.margin} px; {platform.system()}, {os.cpu_count()} cores\n")
     print(markdown(results))
     atmos_addon.unregister()

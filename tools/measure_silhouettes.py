@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Silhouette error of the compositor path (and Cycles In-Render) against a per-sample reference; writes docs/silhouettes.md.
+"""Silhouette error of the compositor path and Cycles In-Render against a per-sample reference -> docs/silhouettes.md.
 
     .venv/bpy-5.0.1/bin/python tools/measure_silhouettes.py [--engines CYCLES,EEVEE] [--no-in-render] [--no-write]
 
@@ -263,8 +263,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     atmos_addon.register()
     start = time.perf_counter()
-    lines = [f"| Blender | engine | mode | scene | 1x filter | edge px | with the effect vs reference: mean | max "
-             f"| Image only (baseline): mean | max | interior (> 2 px from an edge) max |",
+    lines = ["| Blender | engine | mode | scene | 1x filter | edge px | with the effect vs reference: mean | max "
+             "| Image only (baseline): mean | max | interior (> 2 px from an edge) max |",
              "|---|---|---|---|---|---:|---:|---:|---:|---:|---:|"]
     notes = set()
     for engine in args.engines.split(","):
