@@ -3,22 +3,22 @@
 
 Three pieces, all reading the scene-property parameters of :mod:`.parameters`:
 
-- the dome volume (:func:`build_dome_volume`): a material for the closed dome mesh of one species
-  (``atmos_addon.physics.dome_mesh``) holding a homogeneous Volume Absorption of coefficient
-  sigma = beta_R (molecules) or beta_M + beta_M,abs (aerosols), per channel, in 1/scene unit. Cycles
-  integrates a homogeneous absorber in closed form, so every camera, glossy and transmission ray loses
-  exactly exp(-sum_i sigma_i b_i) with b_i its length inside dome i: for a ray from the camera
-  b_i = min(s, R_i(v)), the extinction F_ex of the aerial group (:mod:`.aerial_perspective`);
+- the dome material (:func:`build_dome_volume`): for the closed dome mesh of one species
+  (``atmos_addon.physics.dome_mesh``), a homogeneous Volume Absorption of coefficient sigma = beta_R
+  (molecules) or beta_M + beta_M,abs (aerosols), per channel, in 1/scene unit. Cycles integrates a homogeneous
+  absorber in closed form, so every camera, glossy and transmission ray loses exactly exp(-sigma l) over its
+  length l inside dome i; for a ray from the camera l = b_i = min(s, R_i(v)), the extinction F_ex of the
+  aerial group (:mod:`.aerial_perspective`). Its surface is a Transparent filter (:func:`dome_filter`) that
+  makes a ray from anywhere else lose what a camera ray along the same direction would;
 - the surface emission (:data:`SURFACE_GROUP_NAME`): each managed material adds, on camera, glossy and
   transmission rays only, an emission L_in / F_ex of the segment the ray just travelled (the "Ray Segment"
   aerial group: s = Light Path > Ray Length, v = -Incoming), weighted by the surface's opacity. The dome
   attenuates it by the same F_ex, so the eye receives F_ex L_0 + L_in per segment, and a reflected or
   refracted segment composes with the one before it: F_1 (F_2 L_0 + L_2) + L_1;
-- the sky compensation (:data:`SKY_GROUP_NAME`): a sky ray from the camera leaves the domes attenuated by
-  F_ex(R_R, R_M), the sky's own extinction; on camera, glossy and transmission rays the world radiance is
-  multiplied by exp(min(tau_dome, :data:`MAX_COMPENSATED_OPTICAL_DEPTH`)) so the camera sees the sky
-  unchanged (exact for camera rays; a reflected sky ray from a point p leaves the camera-centred domes after
-  a different length, the residual measured in ``docs/in_render.md``).
+- the sky compensation (:data:`SKY_GROUP_NAME`): a sky ray leaves the domes attenuated by
+  exp(-tau_dome(v)) (the dome filters see to that for rays that do not start at the camera), the sky's own
+  extinction; on camera, glossy and transmission rays the world radiance is multiplied by
+  exp(min(tau_dome, :data:`MAX_COMPENSATED_OPTICAL_DEPTH`)) so every such ray sees the sky the camera sees.
 
 Diffuse and shadow rays see neither the domes (ray visibility off) nor the emission: the sun lamp carries the
 ground-level sunlight, and the haze must not light the scene. Nothing here runs Python at render time, so a
@@ -39,7 +39,7 @@ from .graph import GraphBuilder, Socket
 SURFACE_GROUP_NAME = "Atmos In-Render Surface"
 SKY_GROUP_NAME = "Atmos In-Render Sky"
 #: Bump when a tree these builders make changes; stale trees are rebuilt in place.
-IN_RENDER_GROUP_VERSION = 1
+IN_RENDER_GROUP_VERSION = 2
 #: The compensation exp(tau) is capped here: exp(60) = 1.1e26 keeps a bright sky (1e5 W/(m^2 sr), the sun's
 #: disk) times the factor below float32's 3.4e38, and exp(-60) = 8.8e-27 above its smallest normal 1.2e-38.
 #: Where the real depth is larger (the horizon in thick haze) the in-render sky is darker than the sky.
@@ -172,8 +172,39 @@ def ensure_sky_group(features: AerialFeatures) -> bpy.types.ShaderNodeTree:
 # -- the dome volume ------------------------------------------------------------------------------------
 
 
+def dome_filter(g: GraphBuilder, species: str, sigma_per_unit: Socket) -> Socket:
+    """The dome surface's Transparent colour: exp(sigma L - tau_i(v)) leaving, exp(-sigma L) entering, per channel.
+
+    L = Light Path > Ray Length, the distance from the ray's origin p (the camera, or the surface a reflected or
+    refracted ray left; Cycles keeps p across transparent surfaces); tau_i(v) = beta_i R_i(v), the depth of
+    dome i from the camera along the ray's direction v, by which the world multiplies the sky. Along any ray
+    segment the dome's absorption times these filters is exp(-tau_i(v)) once the ray has left the dome,
+    wherever p is (the cases are worked through in ``docs/in_render.md``), so the sky a reflection sees is the
+    sky the camera sees, and a surface beyond the dome gets the model's F_ex of b_i = R_i(v). For a camera
+    ray the exit filter only cancels the mesh's facet error. The exponent is capped at
+    :data:`MAX_COMPENSATED_OPTICAL_DEPTH` like the world's.
+    """
+    path = g.node("ShaderNodeLightPath", label="Light Path")
+    geometry = g.node("ShaderNodeNewGeometry", label="Geometry")
+    _, _, view_z = g.separate(view_direction(g), label="v")
+    r_rayleigh, r_mie = dome_distances(g, view_z)
+    if species == "MOLECULES":
+        tau = g.scale(g.attribute(parameters.BETA_RAYLEIGH), r_rayleigh, label="tau_R = beta_R R_R")
+    else:
+        beta = g.add(g.attribute(parameters.BETA_MIE), g.attribute(parameters.BETA_MIE_ABSORPTION),
+                     label="beta_M + beta_M,abs")
+        tau = g.scale(beta, r_mie, label="tau_M = beta_M,ex R_M")
+    depth = g.scale(sigma_per_unit, path.outputs["Ray Length"], label="sigma L")
+    leaving = g.min(g.sub(depth, tau), (MAX_COMPENSATED_OPTICAL_DEPTH,) * 3, label="min(sigma L - tau, 60)")
+    entering = g.neg(depth, label="-sigma L")
+    exponent = g.multiply_add(g.sub(leaving, entering), geometry.outputs["Backfacing"], entering,
+                              label="leaving (backfacing) or entering")
+    return g.per_channel(g.exp, exponent, label="dome filter")
+
+
 def build_dome_volume(tree: bpy.types.ShaderNodeTree, species: str) -> None:
-    """A material tree: Volume Absorption with density max_c(sigma) and colour 1 - sigma / density.
+    """A material tree: Volume Absorption with density max_c(sigma) and colour 1 - sigma / density; the surface
+    a Transparent BSDF coloured by :func:`dome_filter`.
 
     Cycles' absorption coefficient is density * (1 - colour) per channel, so this is sigma exactly, in
     1/scene unit: sigma (1/m) times metres per unit. Uniform inputs only (view-layer attributes), so Cycles
@@ -198,6 +229,9 @@ def build_dome_volume(tree: bpy.types.ShaderNodeTree, species: str) -> None:
     output = g.node("ShaderNodeOutputMaterial", label="Material Output")
     output.target = "CYCLES"
     tree.links.new(absorption.outputs["Volume"], output.inputs["Volume"])
+    crossing = g.node("ShaderNodeBsdfTransparent", label="Dome filter")
+    g._feed(crossing, crossing.inputs["Color"], dome_filter(g, species, sigma))
+    tree.links.new(crossing.outputs["BSDF"], output.inputs["Surface"])
     g.set_depth(output, g.max_depth + 1)
     g.layout()
     tree[_VERSION_KEY] = IN_RENDER_GROUP_VERSION

@@ -5,7 +5,8 @@
 
 In In-Render mode the world is multiplied by exp(tau_dome(d)) on camera, glossy and transmission rays, the
 optical depth of the camera-centred domes along d. A sky ray reflected at a point p leaves the domes after
-l_i(p, d) instead of R_i(d), so the reflected sky is off by the factor
+l_i(p, d) instead of R_i(d); without the domes' transparent filters (``node_groups.in_render.dome_filter``)
+the reflected sky would be off by the factor
 
     r = exp(sum_i sigma_i (R_i(d) - l_i(p, d)))
       ~ exp(sum_i sigma_i (p - c) . n_i / (n_i . d))     to first order in |p - c| / R_i
@@ -13,8 +14,9 @@ l_i(p, d) instead of R_i(d), so the reflected sky is off by the factor
 (sigma_R = beta_R for the molecules' dome, sigma_M = beta_M + beta_M,abs for the aerosols'; n_i the dome's
 normal where the ray leaves it). Where the dome is locally a sphere (n_i = d) this is exp(beta_ex dot(p - c, d));
 where it is locally flat (n_i = up, the dome high above the ground: R_i(e) ~ H_i / sin e) it is
-exp(-sum_i sigma_i h / sin e), h the height of the camera above p, e the reflected ray's elevation: a lake
-below the camera reflects the sky *darker*. This tool measures r and compares it with both forms.
+exp(-sum_i sigma_i h / sin e), h the height of the camera above p. The filters multiply the leaving ray by
+exp(sigma_i l_i - tau_i(d)), which cancels r: this tool measures what is left (expected: 0 up to noise and the
+pixel filter) next to the r the filters remove (the "without the filters" columns).
 
 Scene: ``sample_scenes/valley.py`` with its lake made a perfect mirror (Glossy BSDF, white, roughness 0) and
 extended from the shore (y = -5 m) to the foot of the first ridge (y = 1000 m), x = +-1000 m, at the lake's
@@ -27,9 +29,9 @@ T and L (the per-material emission and the dome along the first segment), so
 
 - the pixel error In-Render / reference - 1 is the headline number (what a user sees);
 - the sky term's residual is measured as r - 1 = (In-Render - reference) / (reference - L), L the compositor's
-  in-scattering AOV, and compared with its prediction: r from the dome geometry (l_i solved by bisection on
-  the analytic dome R_i(e) of ``physics.dome_mesh``, for the pixel-centre rays) and the sphere form
-  exp(beta_ex dot(p - c, d)). Both in the blue channel (the largest coefficients), signed: mean and the value
+  in-scattering AOV, and shown beside the r the filters remove: from the dome geometry (l_i solved by
+  bisection on the analytic dome R_i(e) of ``physics.dome_mesh``, for the pixel-centre rays) and the sphere
+  form exp(beta_ex dot(p - c, d)). Both in the blue channel (the largest coefficients), signed: mean and the value
   of largest magnitude.
 
 Pixels: the lake pixels that reflect sky, found by ray casts through the pixel centres before Atmos is enabled
@@ -40,7 +42,7 @@ Errors are relative, max over RGB; mean and max over the pixels.
 
 Cameras: "valley" is the sample's camera (2 m above the ground, 2.3 m above the lake, 3 deg up); there the
 ridges hide the reflected sky except within about 25 m of the shore. "raised" puts the camera 50 m above the
-lake, 10 deg down, so the lake reflects sky out to a few hundred metres: the residual grows with h / sin e.
+lake, 10 deg down, so the lake reflects sky out to a few hundred metres: r grows with h / sin e.
 """
 
 from __future__ import annotations
@@ -278,8 +280,8 @@ def measure(args: argparse.Namespace, camera_name: str) -> dict:
 
 def markdown(results: list[dict]) -> str:
     lines = ["| camera | sky-reflecting lake px | lake distance (m) | pixel error, In-Render vs reference: mean | max "
-             "| r - 1 (blue), measured: mean | extreme | predicted, dome geometry: mean | extreme "
-             "| sphere form exp(beta_ex dot(p - c, d)) - 1: mean | extreme | direct sky px "
+             "| r - 1 (blue), measured: mean | extreme | without the filters, dome geometry: mean | extreme "
+             "| without the filters, sphere form exp(beta_ex dot(p - c, d)) - 1: mean | extreme | direct sky px "
              "| baseline (direct sky): mean | max |",
              "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in results:
@@ -306,7 +308,7 @@ def main(argv: list[str] | None = None) -> int:
         results.append(result)
         gap = result["measured"] - result["exact"]
         print(f"{camera_name}: {result['seconds']:.0f} s; non-finite values {result['nonfinite']}; blue channel, "
-              f"measured - predicted (dome geometry) r: mean {gap.mean() if gap.size else float('nan'):+.2e}, "
+              f"measured r - r without the filters (dome geometry): mean {gap.mean() if gap.size else float('nan'):+.2e}, "
               f"max |.| {np.abs(gap).max() if gap.size else float('nan'):.2e}", flush=True)
     width, height = args.resolution
     print(f"\nBlender {bpy.app.version_string}, valley with a mirror lake, {width}x{height} px, "

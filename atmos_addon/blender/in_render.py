@@ -46,6 +46,12 @@ REACTIVATE_KEY = "atmos_reactivate"
 DOME_KEY = "atmos_dome_of"
 #: The camera's clip end is raised to this many times the largest dome distance.
 CLIP_MARGIN = 1.05
+#: Dome crossings a path may make: every dome surface is a transparent filter (``node_groups.in_render``), and
+#: Cycles counts each crossing as a transparent bounce. A camera ray to the sky crosses 2; a reflected ray
+#: from beyond a dome enters and leaves it, 4 at most. The scene's transparent bounce limit and its
+#: Russian-roulette threshold are raised by this much while In-Render mode is installed (restored on removal),
+#: so the domes neither cut paths short nor add noise.
+DOME_CROSSINGS = 4
 MODES = ("COMPOSITOR", "IN_RENDER")
 
 
@@ -288,6 +294,27 @@ def sync_domes(scene, atmosphere, metres_per_unit: float) -> None:
     _raise_clip_end(scene, largest * scale * CLIP_MARGIN)
 
 
+def _raise_transparent_bounces(scene) -> None:
+    cycles = getattr(scene, "cycles", None)
+    if cycles is None:
+        return
+    scene[STATE_KEY]["transparent_bounces"] = [cycles.transparent_max_bounces, cycles.min_transparent_bounces]
+    cycles.transparent_max_bounces += DOME_CROSSINGS
+    cycles.min_transparent_bounces += DOME_CROSSINGS
+
+
+def _restore_transparent_bounces(scene, state) -> None:
+    saved = state.get("transparent_bounces")
+    cycles = getattr(scene, "cycles", None)
+    if saved is None or cycles is None:
+        return
+    # Give back what was added; a value the user changed meanwhile keeps the change.
+    if cycles.transparent_max_bounces == saved[0] + DOME_CROSSINGS:
+        cycles.transparent_max_bounces = saved[0]
+    if cycles.min_transparent_bounces == saved[1] + DOME_CROSSINGS:
+        cycles.min_transparent_bounces = saved[1]
+
+
 def _raise_clip_end(scene, needed: float) -> None:
     camera = scene.camera
     if camera is None or camera.type != "CAMERA" or needed <= 0.0 or camera.data.clip_end >= needed:
@@ -394,6 +421,7 @@ def install(scene, features, atmosphere, metres_per_unit: float) -> list[str]:
         collection = bpy.data.collections.new(COLLECTION_NAME)
         scene.collection.children.link(collection)
         scene[STATE_KEY] = {"collection": collection.name}
+        _raise_transparent_bounces(scene)
         for species in DOME_NAMES:
             _make_dome(scene, collection, species, atmosphere, 1.0 / metres_per_unit)
     sync_domes(scene, atmosphere, metres_per_unit)
@@ -442,6 +470,7 @@ def uninstall(scene) -> None:
         camera = bpy.data.cameras.get(camera_name)
         if camera is not None:
             camera.clip_end = clip_end
+    _restore_transparent_bounces(scene, state)
     del scene[STATE_KEY]
 
 

@@ -13,10 +13,13 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 import bpy
 import numpy as np
+from mathutils import Vector
 
 #: Eevee's engine id: ``BLENDER_EEVEE_NEXT`` in Blender 4.2-4.5, ``BLENDER_EEVEE`` from 5.0.
 EEVEE_ENGINE = "BLENDER_EEVEE_NEXT" if bpy.app.version < (5, 0, 0) else "BLENDER_EEVEE"
@@ -152,3 +155,66 @@ def pixel_centre_directions(camera: bpy.types.Object, width: int, height: int) -
     rotation = np.array(camera.matrix_world.to_3x3(), dtype=np.float64)
     world = local @ rotation.T
     return world / np.linalg.norm(world, axis=-1, keepdims=True)
+
+
+# -- the parity scenes (camera at the origin looking along +Y, Z up; emissive planes of known radiance) ----
+
+
+def set_use_nodes(idblock, value: bool = True) -> None:
+    """``idblock.use_nodes = value`` without Blender 5.0's deprecation warning (the tests still run on 4.2)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        idblock.use_nodes = value
+
+
+def view_direction(column: float, row: float, width: int, height: int, fov_rad: float) -> Vector:
+    """World direction through a pixel centre (row 0 at the bottom) of a camera at the origin looking along +Y,
+    Z up, horizontal field of view ``fov_rad`` (rotation (pi/2, 0, 0))."""
+    half = math.tan(fov_rad / 2.0)
+    x = (column + 0.5 - width / 2.0) / (width / 2.0) * half
+    z = (row + 0.5 - height / 2.0) / (width / 2.0) * half
+    return Vector((x, 1.0, z)).normalized()
+
+
+def emission_material(name: str, radiance: Sequence[float]) -> bpy.types.Material:
+    """A material whose only shader is an Emission of ``radiance`` (strength 1): a surface of known L0."""
+    material = bpy.data.materials.new(name)
+    set_use_nodes(material, True)
+    tree = material.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    emission = tree.nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (*radiance, 1.0)
+    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return material
+
+
+def render_exr(scene: bpy.types.Scene, path: Path) -> np.ndarray:
+    """Render ``scene`` to a 32-bit EXR at ``path`` (kept, for inspection) and return its RGB, row 0 at the bottom."""
+    settings = scene.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(str(path), check_existing=False)
+    width, height = image.size
+    pixels = np.array(image.pixels[:], dtype=float).reshape(height, width, 4)[..., :3]
+    bpy.data.images.remove(image)
+    return pixels
+
+
+def parity_world_camera_sun(scene: bpy.types.Scene, world_colour: Sequence[float], fov_rad: float):
+    """A plain world of ``world_colour``, a camera at the origin looking along +Y (Z up, clip end 100 km) and a
+    sun lamp, for the parity scenes of :func:`view_direction`; returns the sun object."""
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    set_use_nodes(world, True)
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (*world_colour, 1.0)
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.data.angle = fov_rad
+    camera.data.clip_end = 100_000.0
+    camera.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    scene.collection.objects.link(sun)
+    return sun

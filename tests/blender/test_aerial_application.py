@@ -21,6 +21,8 @@ import atmos_addon
 from atmos_addon.blender import compositor, effect, materials, sync
 from atmos_addon.physics import sun_irradiance_ground
 from atmos_addon.physics.aerial_perspective import extinction, inscattering
+from render_utils import emission_material, parity_world_camera_sun, render_exr, set_use_nodes, \
+    view_direction
 
 IS_5 = bpy.app.version >= (5, 0, 0)
 EEVEE = "BLENDER_EEVEE" if IS_5 else "BLENDER_EEVEE_NEXT"
@@ -42,10 +44,6 @@ def _quiet(function, *args):
         return function(*args)
 
 
-def _set_use_nodes(idblock, value: bool) -> None:
-    _quiet(setattr, idblock, "use_nodes", value)
-
-
 def snapshot(tree) -> tuple:
     """Node names/types/values and links of a tree, for before/after comparisons."""
     nodes = []
@@ -64,7 +62,7 @@ def snapshot(tree) -> tuple:
 def user_material(name: str = "User"):
     """A material with a few user nodes: noise -> colour ramp -> principled, plus a loose math node."""
     material = bpy.data.materials.new(name)
-    _set_use_nodes(material, True)
+    set_use_nodes(material, True)
     tree = material.node_tree
     noise = tree.nodes.new("ShaderNodeTexNoise")
     ramp = tree.nodes.new("ShaderNodeValToRGB")
@@ -124,7 +122,7 @@ def test_shared_material_once_and_multiple_slots() -> None:
 
 def test_skipped_materials_and_bare_objects_are_reported(tmp_path: Path) -> None:
     plain = bpy.data.materials.new("NoNodes")
-    _set_use_nodes(plain, False)
+    set_use_nodes(plain, False)
     library_path = tmp_path / "library.blend"
     linked_source = user_material("Linked")
     bpy.data.libraries.write(str(library_path), {linked_source})
@@ -257,20 +255,11 @@ def test_missing_compositor_is_created_and_removed() -> None:
 
 def _pixel_direction(column: int, row: int) -> Vector:
     """World direction of a pixel centre for the test camera (at the origin, looking along +Y, Z up)."""
-    half = math.tan(FOV / 2.0)
-    x = (column + 0.5 - WIDTH / 2.0) / (WIDTH / 2.0) * half
-    z = (row + 0.5 - HEIGHT / 2.0) / (WIDTH / 2.0) * half
-    return Vector((x, 1.0, z)).normalized()
+    return view_direction(column, row, WIDTH, HEIGHT, FOV)
 
 
 def _emissive_plane(name: str, radiance, distance: float, column: int, row: int):
-    material = bpy.data.materials.new(name)
-    _set_use_nodes(material, True)
-    tree = material.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    emission = tree.nodes.new("ShaderNodeEmission")
-    emission.inputs["Color"].default_value = (*radiance, 1.0)
-    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    material = emission_material(name, radiance)
     direction = _pixel_direction(column, row)
     obj = mesh_object(name, material, half_size=distance * 3.0 * math.tan(FOV / 2.0) / (WIDTH / 2.0))  # ~3 px
     obj.location = direction * distance
@@ -292,18 +281,7 @@ def _render_scene(engine: str):
         scene.cycles.filter_width = 0.01  # sample the pixel centre, where the expected value is computed
     else:
         scene.eevee.taa_render_samples = 1
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    _set_use_nodes(world, True)
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD_COLOUR, 1.0)
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.data.angle = FOV
-    camera.data.clip_end = 100_000.0
-    camera.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    scene.collection.objects.link(sun)
+    sun = parity_world_camera_sun(scene, WORLD_COLOUR, FOV)
     return scene, sun
 
 
@@ -316,16 +294,7 @@ SKY_PIXEL = (16, 1)
 
 
 def _render(scene, tmp_path: Path, name: str) -> np.ndarray:
-    settings = scene.render.image_settings
-    settings.file_format = "OPEN_EXR"
-    settings.color_depth = "32"
-    path = tmp_path / f"{name}.exr"
-    scene.render.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(path), check_existing=False)
-    pixels = np.array(image.pixels[:], dtype=float).reshape(HEIGHT, WIDTH, 4)[..., :3]
-    bpy.data.images.remove(image)
-    return pixels
+    return render_exr(scene, tmp_path / f"{name}.exr")  # RGB, row 0 at the bottom
 
 
 def _expected(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
@@ -394,7 +363,7 @@ def test_eevee_parity_with_the_physics(tmp_path: Path, aov_results: dict) -> Non
 def _cutout_card(kind: str, distance: float, radiance: float):
     """A card whose left half is fully transparent: Principled Alpha or Mix Shader with Transparent BSDF."""
     material = bpy.data.materials.new(f"Card {kind}")
-    _set_use_nodes(material, True)
+    set_use_nodes(material, True)
     tree = material.node_tree
     coords = tree.nodes.new("ShaderNodeTexCoord")
     split = tree.nodes.new("ShaderNodeSeparateXYZ")

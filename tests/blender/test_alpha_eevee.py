@@ -26,6 +26,7 @@ import atmos_addon
 from atmos_addon.blender import effect, sync
 from atmos_addon.physics import sun_irradiance_ground
 from atmos_addon.physics.aerial_perspective import extinction, inscattering
+from render_utils import render_exr
 
 EEVEE = "BLENDER_EEVEE" if bpy.app.version >= (5, 0, 0) else "BLENDER_EEVEE_NEXT"
 WIDTH, HEIGHT, FOV = 32, 16, math.radians(20.0)
@@ -141,18 +142,7 @@ def _scene():
     return scene
 
 
-def _render(scene, path: Path) -> np.ndarray:
-    """The composited image, linear RGB, row 0 at the bottom."""
-    settings = scene.render.image_settings
-    settings.file_format = "OPEN_EXR"
-    settings.color_depth = "32"
-    scene.render.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(path), check_existing=False)
-    pixels = np.empty(WIDTH * HEIGHT * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
-    bpy.data.images.remove(image)
-    return pixels.reshape(HEIGHT, WIDTH, 4)[..., :3].astype(np.float64)
+_render = render_exr  # the composited image, linear RGB, row 0 at the bottom
 
 
 def _expected(scene, radiance, plane_distance: float, column: int, row: int) -> np.ndarray:

@@ -12,7 +12,6 @@ scene back exactly.
 from __future__ import annotations
 
 import math
-import warnings
 from pathlib import Path
 
 import bpy
@@ -25,6 +24,10 @@ import atmos_addon.api
 from atmos_addon.blender import effect, in_render, materials, sync
 from atmos_addon.physics import sun_irradiance_ground
 from atmos_addon.physics.aerial_perspective import extinction, inscattering
+from atmos_addon.physics.sky import aerial_distance_clamped, dome_distance_approx, extinction_layered, \
+    inscattering_layered
+from render_utils import emission_material, parity_world_camera_sun, render_exr, set_use_nodes, \
+    view_direction
 
 EEVEE = "BLENDER_EEVEE" if bpy.app.version >= (5, 0, 0) else "BLENDER_EEVEE_NEXT"
 WORLD_COLOUR = (0.05, 0.1, 0.2)
@@ -42,18 +45,9 @@ def addon():
     atmos_addon.unregister()
 
 
-def _set_use_nodes(idblock, value: bool) -> None:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        idblock.use_nodes = value
-
-
 def _pixel_direction(column: float, row: float) -> Vector:
     """World direction of a pixel centre for the test camera (at the origin, looking along +Y, Z up)."""
-    half = math.tan(FOV / 2.0)
-    x = (column + 0.5 - WIDTH / 2.0) / (WIDTH / 2.0) * half
-    z = (row + 0.5 - HEIGHT / 2.0) / (WIDTH / 2.0) * half
-    return Vector((x, 1.0, z)).normalized()
+    return view_direction(column, row, WIDTH, HEIGHT, FOV)
 
 
 def _quad(name: str, material, centre: Vector, normal: Vector, half_size: float):
@@ -69,20 +63,9 @@ def _quad(name: str, material, centre: Vector, normal: Vector, half_size: float)
     return obj
 
 
-def _emission_material(name: str, radiance):
-    material = bpy.data.materials.new(name)
-    _set_use_nodes(material, True)
-    tree = material.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    emission = tree.nodes.new("ShaderNodeEmission")
-    emission.inputs["Color"].default_value = (*radiance, 1.0)
-    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    return material
-
-
 def _mirror_material():
     material = bpy.data.materials.new("Mirror")
-    _set_use_nodes(material, True)
+    set_use_nodes(material, True)
     tree = material.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     glossy = tree.nodes.new("ShaderNodeBsdfAnisotropic" if bpy.app.version < (4, 0, 0) else "ShaderNodeBsdfGlossy")
@@ -106,34 +89,13 @@ def _scene(samples: int = 1):
     cycles.device = "CPU"
     cycles.pixel_filter_type = "BOX"
     cycles.filter_width = 0.01  # sample the pixel centre, where the expected value is computed
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    _set_use_nodes(world, True)
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD_COLOUR, 1.0)
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.data.angle = FOV
-    camera.data.clip_end = 100_000.0
-    camera.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    scene.collection.objects.link(sun)
+    sun = parity_world_camera_sun(scene, WORLD_COLOUR, FOV)
     sun.rotation_euler = (math.radians(60), 0.0, math.radians(200))
     return scene, sun
 
 
 def _render(scene, tmp_path: Path, name: str) -> np.ndarray:
-    settings = scene.render.image_settings
-    settings.file_format = "OPEN_EXR"
-    settings.color_depth = "32"
-    path = tmp_path / f"{name}.exr"
-    scene.render.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(path), check_existing=False)
-    width, height = image.size
-    pixels = np.array(image.pixels[:], dtype=float).reshape(height, width, 4)[..., :3]  # row 0 at the bottom
-    bpy.data.images.remove(image)
-    return pixels
+    return render_exr(scene, tmp_path / f"{name}.exr")  # RGB, row 0 at the bottom
 
 
 def _segment(scene, direction, distance: float) -> tuple[np.ndarray, np.ndarray]:
@@ -160,7 +122,7 @@ def _build_planes(scene):
     for name, radiance, distance, column, row in DIRECT:
         direction = _pixel_direction(column, row)
         half = distance * 2.0 * math.tan(FOV / 2.0) / (WIDTH / 2.0)  # about 2 px
-        _quad(name, _emission_material(name, radiance), direction * distance, -direction, half)
+        _quad(name, emission_material(name, radiance), direction * distance, -direction, half)
     # The mirror faces back along the view ray, turned 45 degrees about Z so it reflects the ray toward +X.
     view = _pixel_direction(*MIRROR_PIXEL)
     mirror_point = view * MIRROR_DISTANCE
@@ -168,7 +130,7 @@ def _build_planes(scene):
     _quad("Mirror", _mirror_material(), mirror_point, normal, 40.0)
     reflected = view - 2.0 * view.dot(normal) * normal
     wall_centre = mirror_point + reflected * REFLECTED_DISTANCE
-    _quad("Reflected", _emission_material("Reflected", REFLECTED_RADIANCE), wall_centre, -reflected, 400.0)
+    _quad("Reflected", emission_material("Reflected", REFLECTED_RADIANCE), wall_centre, -reflected, 400.0)
     return view, mirror_point, normal, reflected
 
 
@@ -207,6 +169,77 @@ def test_in_render_parity_direct_and_mirrored(tmp_path: Path) -> None:
     np.testing.assert_allclose(pixels[SKY_PIXEL[1], SKY_PIXEL[0]], WORLD_COLOUR, rtol=TOLERANCE)
 
 
+def _dome_segment(scene, direction, distance: float) -> tuple[np.ndarray, np.ndarray]:
+    """(F_ex, L_in) of a segment with the virtual-dome clamp b_i = min(s, R_i(v)) (the model both modes use)."""
+    atmosphere = sync.atmosphere_from_settings(scene.atmos)
+    sun_dir, _ = sync.sun_direction(scene)
+    e_sun = sun_irradiance_ground(math.asin(sun_dir[2]), atmosphere)
+    v = np.asarray(direction, dtype=float)
+    b_rayleigh, b_mie = aerial_distance_clamped(distance * sync.metres_per_unit(scene), math.asin(v[2]), atmosphere,
+                                                0.0, dome_distance_approx)
+    return (extinction_layered(b_rayleigh, b_mie, atmosphere),
+            inscattering_layered(b_rayleigh, b_mie, float(v @ sun_dir), atmosphere, e_sun))
+
+
+def _mirror_towards(name: str, view: Vector, distance: float, out: Vector, half_size: float) -> None:
+    """A perfect mirror where the camera ray ``view`` meets it at ``distance``, turned to reflect it along ``out``."""
+    _quad(name, _mirror_material(), view * distance, (out - view).normalized(), half_size)
+
+
+#: Mirrors anywhere in the domes, reflecting the sky: (pixel column, row, distance m, reflected elevation deg).
+#: Rows 8, 5 and 2 look 0.3 deg up, 1.6 and 3.5 deg down, so the mirrors stand up to 2.8 km below the camera.
+SKY_MIRRORS = tuple((column, row, distance, elevation)
+                    for row, elevation in ((8, 0.5), (5, 3.0), (2, 10.0))
+                    for column, distance in ((10, 300.0), (20, 20_000.0), (28, 45_000.0)))
+#: Mirrors in the top row, 50 km away, beyond the aerosols' dome (R_M(4.7 deg) = 14 km): the reflected ray
+#: enters that dome and leaves it again. (column, elevation of the reflected ray, its x direction)
+BEYOND_MIRRORS = ((12, -3.0, -1.0), (28, -6.0, 1.0))
+
+
+@needs_in_render
+def test_reflections_anywhere_see_the_cameras_sky(tmp_path: Path) -> None:
+    """A reflected ray leaves the camera-centred domes after its own length, not the camera's: the domes'
+    transparent filters make up the difference, so a mirror 300 m to 50 km away, above or below the camera,
+    inside or beyond a dome, shows the sky the camera sees (1 sample per pixel: no Russian roulette at the
+    crossings either), and a near mirror shows a plane beyond the aerosols' dome with that dome's F_ex."""
+    scene, _sun = _scene()
+    scene.cycles.max_bounces = scene.cycles.glossy_bounces = 4
+    scene.atmos.sky_enabled = False
+    scene.atmos.render_mode = "IN_RENDER"
+    cases = []
+    for column, row, distance, elevation in SKY_MIRRORS:
+        view = _pixel_direction(column, row)
+        out = Vector((1.0, 0.0, math.tan(math.radians(elevation)))).normalized()
+        _mirror_towards(f"Mirror {column} {row}", view, distance, out, distance * 0.004)
+        cases.append((f"{distance / 1000:g} km, sky {elevation:g} deg", column, row, view, distance, None))
+    for column, elevation, x in BEYOND_MIRRORS:
+        view = _pixel_direction(column, 15)
+        out = Vector((x, 0.3, math.tan(math.radians(elevation)))).normalized()
+        _mirror_towards(f"Beyond {column}", view, 50_000.0, out, 300.0)
+        cases.append((f"50 km beyond the aerosol dome, sky {elevation:g} deg", column, 15, view, 50_000.0, None))
+    # A mirror 500 m away reflecting a plane 40 km further, 6 deg up: beyond the aerosols' dome there.
+    view = _pixel_direction(4, 8)
+    out = Vector((-1.0, 0.2, math.tan(math.radians(6.0)))).normalized()
+    _mirror_towards("Near mirror", view, 500.0, out, 4.0)
+    _quad("Far plane", emission_material("Far plane", REFLECTED_RADIANCE), view * 500.0 + out * 40_000.0, -out,
+          2000.0)
+    cases.append(("near mirror, plane 40 km beyond it", 4, 8, view, 500.0, (out, 40_000.0)))
+    effect.enable_effect(scene)
+    assert in_render.is_installed(scene)
+    pixels = _render(scene, tmp_path, "reflections")
+    for name, column, row, view, distance, reflected in cases:
+        f1, l1 = _dome_segment(scene, view, distance)
+        if reflected is None:
+            seen = np.asarray(WORLD_COLOUR)
+        else:
+            f2, l2 = _dome_segment(scene, *reflected)
+            seen = f2 * np.asarray(REFLECTED_RADIANCE) + l2
+        expected = f1 * seen + l1
+        got = pixels[row, column]
+        print(f"reflection, {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
+        np.testing.assert_allclose(got, expected, rtol=TOLERANCE, atol=0, err_msg=name)
+
+
 @needs_in_render
 def test_in_render_sky_equals_the_compositor_sky(tmp_path: Path) -> None:
     """The Atmos sky seen directly: In-Render (attenuated by the domes, compensated) = Compositor within 0.5 %."""
@@ -230,7 +263,7 @@ def _noise_scene():
     scene.cycles.max_bounces = 4
     scene.cycles.seed = 7
     material = bpy.data.materials.new("Grey")
-    _set_use_nodes(material, True)
+    set_use_nodes(material, True)
     material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.3, 0.3, 0.3, 1.0)
     material.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.6
     _quad("Wall", material, Vector((0.0, 1000.0, 0.0)), Vector((0.0, -1.0, 0.0)), 400.0)
@@ -298,7 +331,9 @@ def _file_snapshot(scene) -> tuple:
         _tree_snapshot(scene.world.node_tree),
         sorted(o.name for o in bpy.data.objects), sorted(c.name for c in bpy.data.collections),
         sorted(g.name for g in bpy.data.node_groups), sorted(m.name for m in bpy.data.meshes),
-        scene.camera.data.clip_end, sorted(scene.keys()),
+        # Blender 4.x lists the add-on's own settings (the registered PropertyGroup) among the ID properties.
+        scene.camera.data.clip_end, sorted(k for k in scene.keys() if k != "atmos"),
+        scene.cycles.transparent_max_bounces, scene.cycles.min_transparent_bounces,
     )
 
 
@@ -306,7 +341,7 @@ def _file_snapshot(scene) -> tuple:
 def test_in_render_removal_restores_the_scene_exactly() -> None:
     scene, _sun = _scene()
     _build_planes(scene)
-    cycles_only = _emission_material("Cycles only", (0.1, 0.2, 0.3))  # a user output with target Cycles
+    cycles_only = emission_material("Cycles only", (0.1, 0.2, 0.3))  # a user output with target Cycles
     tree = cycles_only.node_tree
     extra = tree.nodes.new("ShaderNodeOutputMaterial")
     extra.target = "CYCLES"
@@ -322,6 +357,8 @@ def test_in_render_removal_restores_the_scene_exactly() -> None:
     assert len(domes) == 2 and all(o.hide_select and not o.visible_diffuse and not o.visible_shadow for o in domes)
     assert all(o.constraints[0].target == scene.camera for o in domes)
     assert scene.camera.data.clip_end > 290_000.0  # beyond the molecules' dome at the horizon
+    assert scene.cycles.transparent_max_bounces == before[-2] + in_render.DOME_CROSSINGS
+    assert scene.cycles.min_transparent_bounces == before[-1] + in_render.DOME_CROSSINGS
     assert bpy.data.materials["Mirror"].cycles.emission_sampling == "NONE"
     assert not any(n.get(materials.TAG) for m in bpy.data.materials if m.node_tree for n in m.node_tree.nodes
                    if n.bl_idname == "ShaderNodeOutputAOV")

@@ -74,14 +74,7 @@ def user_material(name: str = "User"):
     return material
 
 
-def emissive_material(name: str, radiance) -> bpy.types.Material:
-    material = _node_material(name)
-    tree = material.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    emission = tree.nodes.new("ShaderNodeEmission")
-    emission.inputs["Color"].default_value = (*radiance, 1.0)
-    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    return material
+emissive_material = render_utils.emission_material
 
 
 def cutout_material(name: str) -> bpy.types.Material:
