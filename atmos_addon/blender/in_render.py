@@ -298,9 +298,10 @@ def _raise_transparent_bounces(scene) -> None:
     cycles = getattr(scene, "cycles", None)
     if cycles is None:
         return
-    scene[STATE_KEY]["transparent_bounces"] = [cycles.transparent_max_bounces, cycles.min_transparent_bounces]
-    cycles.transparent_max_bounces += DOME_CROSSINGS
+    saved = [cycles.transparent_max_bounces, cycles.min_transparent_bounces]
+    cycles.transparent_max_bounces += DOME_CROSSINGS  # clamped at Blender's limit (1024)
     cycles.min_transparent_bounces += DOME_CROSSINGS
+    scene[STATE_KEY]["transparent_bounces"] = saved + [cycles.transparent_max_bounces, cycles.min_transparent_bounces]
 
 
 def _restore_transparent_bounces(scene, state) -> None:
@@ -308,10 +309,10 @@ def _restore_transparent_bounces(scene, state) -> None:
     cycles = getattr(scene, "cycles", None)
     if saved is None or cycles is None:
         return
-    # Give back what was added; a value the user changed meanwhile keeps the change.
-    if cycles.transparent_max_bounces == saved[0] + DOME_CROSSINGS:
+    # Give back what was added (saved: before, after); a value the user changed meanwhile keeps the change.
+    if cycles.transparent_max_bounces == saved[2]:
         cycles.transparent_max_bounces = saved[0]
-    if cycles.min_transparent_bounces == saved[1] + DOME_CROSSINGS:
+    if cycles.min_transparent_bounces == saved[3]:
         cycles.min_transparent_bounces = saved[1]
 
 

@@ -433,3 +433,17 @@ def test_thick_haze_warns_where_the_sky_compensation_stops() -> None:
     assert any("optical depth (74)" in line for line in report.messages), report.messages
     report = atmos_addon.api.enable(scene, preset="clear")
     assert not any("optical depth" in line for line in report.messages)
+
+
+@needs_in_render
+def test_transparent_bounces_come_back_even_at_blenders_limit() -> None:
+    """The dome crossings' budget is added and given back exactly, also where Blender clamps it (1024)."""
+    scene, _sun = _scene()
+    _build_planes(scene)
+    scene.cycles.transparent_max_bounces, scene.cycles.min_transparent_bounces = 1022, 3
+    scene.atmos.render_mode = "IN_RENDER"
+    effect.enable_effect(scene)
+    assert (scene.cycles.transparent_max_bounces, scene.cycles.min_transparent_bounces) == \
+        (1024, 3 + in_render.DOME_CROSSINGS)
+    effect.disable_effect(scene)
+    assert (scene.cycles.transparent_max_bounces, scene.cycles.min_transparent_bounces) == (1022, 3)
