@@ -218,3 +218,22 @@ def parity_world_camera_sun(scene: bpy.types.Scene, world_colour: Sequence[float
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
     scene.collection.objects.link(sun)
     return sun
+
+
+def user_compositor(scene: bpy.types.Scene):
+    """Render Layers -> Glare -> output: a user's own compositor graph (5.0's node group, or 4.x's scene tree)."""
+    if bpy.app.version >= (5, 0, 0):
+        tree = bpy.data.node_groups.new("User Compositor", "CompositorNodeTree")
+        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        output = tree.nodes.new("NodeGroupOutput")
+        scene.compositing_node_group = tree
+    else:
+        scene.use_nodes = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        output = tree.nodes.new("CompositorNodeComposite")
+    layers = tree.nodes.new("CompositorNodeRLayers")
+    glare = tree.nodes.new("CompositorNodeGlare")
+    tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
+    tree.links.new(glare.outputs["Image"], output.inputs[0])
+    return tree

@@ -22,7 +22,7 @@ from atmos_addon.blender import compositor, effect, materials, sync
 from atmos_addon.physics import sun_irradiance_ground
 from atmos_addon.physics.aerial_perspective import extinction, inscattering
 from render_utils import emission_material, parity_world_camera_sun, render_exr, set_use_nodes, \
-    view_direction
+    user_compositor, view_direction
 
 IS_5 = bpy.app.version >= (5, 0, 0)
 EEVEE = "BLENDER_EEVEE" if IS_5 else "BLENDER_EEVEE_NEXT"
@@ -187,23 +187,7 @@ def test_sun_direction_follows_the_lamp() -> None:
 # -- compositor --------------------------------------------------------------------------------
 
 
-def _user_compositor(scene):
-    """Render Layers -> Glare -> output, the user's own graph."""
-    if IS_5:
-        tree = bpy.data.node_groups.new("User Compositor", "CompositorNodeTree")
-        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
-        output = tree.nodes.new("NodeGroupOutput")
-        scene.compositing_node_group = tree
-    else:
-        scene.use_nodes = True
-        tree = scene.node_tree
-        tree.nodes.clear()
-        output = tree.nodes.new("CompositorNodeComposite")
-    layers = tree.nodes.new("CompositorNodeRLayers")
-    glare = tree.nodes.new("CompositorNodeGlare")
-    tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
-    tree.links.new(glare.outputs["Image"], output.inputs[0])
-    return tree
+_user_compositor = user_compositor
 
 
 def _compositor_state(scene) -> tuple:

@@ -163,23 +163,7 @@ def compositor_state(scene) -> tuple:
     return (_quiet(getattr, scene, "use_nodes"), snapshot(scene.node_tree), scene.render.use_compositing)
 
 
-def user_compositor(scene):
-    """Render Layers -> Glare -> output: the user's own compositor graph."""
-    if IS_5:
-        tree = bpy.data.node_groups.new("User Compositor", "CompositorNodeTree")
-        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
-        output = tree.nodes.new("NodeGroupOutput")
-        scene.compositing_node_group = tree
-    else:
-        scene.use_nodes = True
-        tree = scene.node_tree
-        tree.nodes.clear()
-        output = tree.nodes.new("CompositorNodeComposite")
-    layers = tree.nodes.new("CompositorNodeRLayers")
-    glare = tree.nodes.new("CompositorNodeGlare")
-    tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
-    tree.links.new(glare.outputs["Image"], output.inputs[0])
-    return tree
+user_compositor = render_utils.user_compositor
 
 
 def parameters(scene) -> dict:
