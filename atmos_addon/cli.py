@@ -25,7 +25,7 @@ from . import presets as preset_library
 
 SAMPLE_SCENES = ("valley", "mars")
 ENGINES = ("cycles", "eevee")
-QUALITY_LEVELS = ("fast",)
+QUALITY_LEVELS = ("fast", "balanced", "auto")
 #: --mode values and the scene setting each selects (``scene.atmos.render_mode``).
 MODES = {"compositor": "COMPOSITOR", "in-render": "IN_RENDER"}
 EXIT_ERROR = 2
@@ -172,6 +172,8 @@ def _prepare_scene(args: argparse.Namespace, *, with_preset: bool = True):
             raise CliError("--mode in-render needs Blender 4.5 or newer (Cycles 4.2 loses indirect light inside "
                            "the haze domes); use --mode compositor")
         overrides["render_mode"] = MODES[mode]
+    if getattr(args, "quality", None) is not None:
+        overrides["quality"] = args.quality.upper()
     if with_preset:
         report = api.enable(scene, preset=args.preset, sun_elevation_deg=args.sun_elevation,
                             sun_azimuth_deg=args.sun_azimuth, **overrides)
@@ -344,8 +346,10 @@ def _add_effect_options(parser: argparse.ArgumentParser, *, preset_required: boo
     parser.add_argument("--mode", choices=tuple(MODES),
                         help="compositor (both engines: AOVs + compositor) or in-render (Cycles: exact per ray "
                              "segment, reflections and refractions included); default: the scene's setting")
-    parser.add_argument("--quality", choices=QUALITY_LEVELS, default="fast",
-                        help="accuracy level (fast: constant density, Hoffman & Preetham 2002)")
+    parser.add_argument("--quality", choices=QUALITY_LEVELS,
+                        help="accuracy level: fast (constant density, Hoffman & Preetham 2002), balanced (density "
+                             "falling with altitude along the curved ray: drones, aircraft, mountains) or auto (the "
+                             "cheapest level within 2%% for the scene); default: the scene's setting")
 
 
 def build_parser() -> argparse.ArgumentParser:

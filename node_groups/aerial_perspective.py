@@ -32,6 +32,7 @@ branch of phi1 have no Vector Math form in Blender 4.2, so they run channel by c
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Sequence
@@ -39,6 +40,7 @@ from typing import Sequence
 import bpy
 
 from . import parameters
+from .balanced import balanced_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction, view_direction
 from .graph import GraphBuilder, Socket
 
@@ -61,12 +63,22 @@ _VERSION_KEY = "atmos_version"
 _FEATURES_KEY = "atmos_features"
 
 
+#: Quality levels the group can be built for: the paper's constant density, or densities falling with altitude
+#: along the curved ray (:mod:`.balanced`).
+LEVELS = ("fast", "balanced")
+
+
 @dataclass(frozen=True)
 class AerialFeatures:
-    """Which optional terms the group contains: Mie scattering (the HG phase) and Mie absorption."""
+    """What the group contains: Mie scattering (the HG phase), Mie absorption, and the quality ``level``."""
 
     mie: bool = True
     absorption: bool = True
+    level: str = "fast"
+
+    def __post_init__(self) -> None:
+        if self.level not in LEVELS:
+            raise ValueError(f"AerialFeatures.level must be one of {LEVELS}; got {self.level!r}")
 
     @classmethod
     def from_coefficients(cls, beta_mie: Sequence[float], beta_mie_absorption: Sequence[float]) -> "AerialFeatures":
@@ -76,8 +88,9 @@ class AerialFeatures:
 
     @property
     def key(self) -> str:
-        """A stable short name, stamped on the tree: "rayleigh", "rayleigh+mie", "rayleigh+mie+abs"..."""
-        return "rayleigh" + ("+mie" if self.mie else "") + ("+abs" if self.absorption else "")
+        """A stable short name, stamped on the tree: "rayleigh", "rayleigh+mie", "rayleigh+mie+abs+balanced"..."""
+        return ("rayleigh" + ("+mie" if self.mie else "") + ("+abs" if self.absorption else "")
+                + ("+balanced" if self.level == "balanced" else ""))
 
 
 # -- the quantities ------------------------------------------------------------------------------------
@@ -232,10 +245,13 @@ def build_aerial_perspective(tree: bpy.types.ShaderNodeTree, features: AerialFea
     g = GraphBuilder(tree)
     s = distance_m(g, distance)
     view = view_direction(g)
-    r_rayleigh, r_mie = dome_distances(g, g.separate(view, label="v")[2])
-    s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
-    s_mie = g.min(s, r_mie, label="s_M = min(s, R_M)") if features.mie or features.absorption else None
-    f_ex, l_in = scattering_terms(g, features, s_rayleigh, s_mie, cos_theta_to_sun(g, view, sun_direction(g)))
+    if features.level == "balanced":
+        f_ex, l_in = balanced_terms(g, features, s, view)
+    else:
+        r_rayleigh, r_mie = dome_distances(g, g.separate(view, label="v")[2])
+        s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
+        s_mie = g.min(s, r_mie, label="s_M = min(s, R_M)") if features.mie or features.absorption else None
+        f_ex, l_in = scattering_terms(g, features, s_rayleigh, s_mie, cos_theta_to_sun(g, view, sun_direction(g)))
     output = g.node("NodeGroupOutput", label="Group Output")
     tree.links.new(f_ex, output.inputs[OUTPUT_TRANSMITTANCE])
     tree.links.new(l_in, output.inputs[OUTPUT_INSCATTERING])
@@ -263,6 +279,10 @@ def ensure_aerial_perspective_group(features: AerialFeatures = AerialFeatures(),
     """
     if distance not in DISTANCE_SOURCES:
         raise ValueError(f"distance source must be one of {DISTANCE_SOURCES}; got {distance!r}")
+    if distance == "RAY":
+        # A ray segment may start anywhere (a mirror, a dome crossing), not at the camera: the Balanced graph's
+        # camera altitude h_P - c s would be wrong there, so the in-render segments use the constant density.
+        features = dataclasses.replace(features, level="fast")
     name = SEGMENT_GROUP_NAME if distance == "RAY" else GROUP_NAME
     tree = bpy.data.node_groups.get(name)
     if tree is None:
@@ -286,8 +306,10 @@ def describe_features(features: AerialFeatures) -> str:
     Reads :data:`NODE_COUNTS` (a test checks it against built trees), so it is safe in a panel's draw.
     """
     parts = ["Rayleigh"] + (["Mie"] if features.mie else []) + (["absorption"] if features.absorption else [])
-    return f"{' + '.join(parts)}: {NODE_COUNTS[features.key]} nodes"
+    return f"{features.level.capitalize()}, {' + '.join(parts)}: {NODE_COUNTS[features.key]} nodes"
 
 
 #: Nodes in the group per feature key for this :data:`NODE_GROUP_VERSION` (group output included).
-NODE_COUNTS = {"rayleigh": 73, "rayleigh+abs": 115, "rayleigh+mie": 143, "rayleigh+mie+abs": 145}
+NODE_COUNTS = {"rayleigh": 73, "rayleigh+abs": 115, "rayleigh+mie": 143, "rayleigh+mie+abs": 145,
+               "rayleigh+balanced": 295, "rayleigh+abs+balanced": 300, "rayleigh+mie+balanced": 330,
+               "rayleigh+mie+abs+balanced": 332}

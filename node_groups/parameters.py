@@ -47,10 +47,19 @@ SUN_ANGULAR_RADIUS = "atmos_sun_angular_radius"
 SUN_LIMB_DARKENING = "atmos_sun_limb_darkening"
 #: Albedo of the ground the sky shows below the horizon, per channel.
 GROUND_ALBEDO = "atmos_ground_albedo"
+#: Altitude of the world origin (z = 0) above sea level, m (the Balanced level's densities fall with altitude).
+ORIGIN_ALTITUDE = "atmos_origin_altitude"
+#: Optical depth from the ground to space toward the sun, molecules, per channel, capped at 50 (Balanced level).
+SUN_OPTICAL_DEPTH_RAYLEIGH = "atmos_sun_optical_depth_rayleigh"
+#: Optical depth from the ground to space toward the sun, aerosols (extinction), per channel, capped at 50.
+SUN_OPTICAL_DEPTH_MIE = "atmos_sun_optical_depth_mie"
 
 #: The parameters of the aerial-perspective group.
 AERIAL_PARAMETER_NAMES = (BETA_RAYLEIGH, BETA_MIE, BETA_MIE_ABSORPTION, MIE_G, SUN_DIRECTION, SUN_IRRADIANCE,
-                          METRES_PER_UNIT, PLANET_RADIUS, SCALE_HEIGHTS)
+                          METRES_PER_UNIT, PLANET_RADIUS, SCALE_HEIGHTS, ORIGIN_ALTITUDE, SUN_OPTICAL_DEPTH_RAYLEIGH,
+                          SUN_OPTICAL_DEPTH_MIE)
+#: The parameters only the Balanced level reads.
+BALANCED_PARAMETER_NAMES = (ORIGIN_ALTITUDE, SUN_OPTICAL_DEPTH_RAYLEIGH, SUN_OPTICAL_DEPTH_MIE)
 #: Every parameter name, in the order of :func:`write_shader_parameters`' arguments.
 PARAMETER_NAMES = (*AERIAL_PARAMETER_NAMES, SUN_ANGULAR_RADIUS, SUN_LIMB_DARKENING, GROUND_ALBEDO)
 
@@ -64,6 +73,8 @@ DEFAULT_SUN_LIMB_DARKENING = 0.6
 DEFAULT_GROUND_ALBEDO = (0.18, 0.2, 0.15)
 #: |g| is kept below this so the Henyey-Greenstein phase stays finite in float32.
 MAX_ABS_MIE_G = 0.999
+#: Cap on the sun's optical depths (``physics.balanced.MAX_SUN_OPTICAL_DEPTH``): inf when the sun is set.
+MAX_SUN_OPTICAL_DEPTH = 50.0
 
 
 def _triple(name: str, value: Sequence[float] | float) -> tuple[float, float, float]:
@@ -95,12 +106,16 @@ def write_shader_parameters(scene: bpy.types.Scene, *, beta_rayleigh: Sequence[f
                             mie_scale_height: float = DEFAULT_MIE_SCALE_HEIGHT_M,
                             sun_angular_radius: float = DEFAULT_SUN_ANGULAR_RADIUS_RAD,
                             sun_limb_darkening: float = DEFAULT_SUN_LIMB_DARKENING,
-                            ground_albedo: Sequence[float] | float = DEFAULT_GROUND_ALBEDO) -> None:
+                            ground_albedo: Sequence[float] | float = DEFAULT_GROUND_ALBEDO,
+                            origin_altitude: float = 0.0,
+                            sun_optical_depth_rayleigh: Sequence[float] | float = 0.0,
+                            sun_optical_depth_mie: Sequence[float] | float = 0.0) -> None:
     """Store the aerial-perspective and sky parameters as custom properties of ``scene`` (plain numbers in).
 
     ``sun_direction`` is normalised here; ``mie_g`` is clamped to +-:data:`MAX_ABS_MIE_G`. Lengths are m,
     the sun's angular radius rad (in (0, pi/2)), the limb darkening in [0, 1]. The keyword arguments with
-    defaults (Earth, the real sun) were added with the sky; older callers keep working. Raises ValueError
+    defaults (Earth, the real sun) were added with the sky, the origin altitude (m) and the sun's ground optical
+    depths (capped here at :data:`MAX_SUN_OPTICAL_DEPTH`) with the Balanced level; older callers keep working. Raises ValueError
     naming the parameter when a value is not finite, a coefficient is negative, the sun direction has zero
     length, a length is not > 0 or an angle is out of range.
     """
@@ -126,12 +141,25 @@ def write_shader_parameters(scene: bpy.types.Scene, *, beta_rayleigh: Sequence[f
         SUN_ANGULAR_RADIUS: _in_range(SUN_ANGULAR_RADIUS, sun_angular_radius, 0.0, 0.5 * math.pi, open_low=True),
         SUN_LIMB_DARKENING: _in_range(SUN_LIMB_DARKENING, sun_limb_darkening, 0.0, 1.0),
         GROUND_ALBEDO: _nonnegative(GROUND_ALBEDO, ground_albedo),
+        ORIGIN_ALTITUDE: _finite(ORIGIN_ALTITUDE, origin_altitude),
+        SUN_OPTICAL_DEPTH_RAYLEIGH: tuple(min(v, MAX_SUN_OPTICAL_DEPTH) for v in _nonnegative(
+            SUN_OPTICAL_DEPTH_RAYLEIGH, sun_optical_depth_rayleigh)),
+        SUN_OPTICAL_DEPTH_MIE: tuple(min(v, MAX_SUN_OPTICAL_DEPTH) for v in _nonnegative(
+            SUN_OPTICAL_DEPTH_MIE, sun_optical_depth_mie)),
     }
     for name, value in values.items():
         # Assign only on change: a write re-tags the scene, and keyframed values must not be clobbered needlessly.
         if name not in scene or _as_tuple(scene[name]) != _as_tuple(value):
             scene[name] = value
     scene.update_tag()
+
+
+def _finite(name: str, value: float) -> float:
+    """A finite float (an altitude may be negative: a scene below sea level)."""
+    number = float(value)
+    if not math.isfinite(number):
+        raise ValueError(f"Atmos shader parameter {name}: expected a finite number; got {value!r}")
+    return number
 
 
 def _positive(name: str, value: float) -> float:

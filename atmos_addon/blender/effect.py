@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import compositor, in_render, materials, sun_lamp, sync, world
+from . import compositor, in_render, materials, quality_choice, sun_lamp, sync, world
 
 _applying: set[str] = set()
 
@@ -101,6 +101,7 @@ def enable_effect(scene) -> Report:
         disable_effect(scene)
     _set_enabled(scene, True)
     in_render_mode = in_render.effective_mode(scene) == "IN_RENDER"
+    quality_choice.resolve(scene)
     report = _apply_materials(scene, only_new=True)
     if not in_render_mode:
         report.messages.extend(compositor.install(scene))
@@ -119,6 +120,7 @@ def enable_effect(scene) -> Report:
     if sun_lamp.bake_sun_animation(scene):
         report.messages.append(f"Animated sun: baked to keyframes for frames {scene.frame_start}-{scene.frame_end}")
     report.messages.append(scene.atmos.status_sun)
+    report.messages.append(scene.atmos.status_quality)
     _status(scene, report)
     sync._last_counts[scene.name] = (len(bpy.data.materials), len(scene.objects))
     return report
@@ -170,6 +172,7 @@ def disable_effect(scene) -> list[str]:
     settings.status_materials = ""
     settings.status_objects = ""
     settings.status_sun = ""
+    settings.status_quality = ""
     settings.skipped_materials.clear()
     sync.forget(scene.name)
     return stripped

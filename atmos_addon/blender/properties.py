@@ -107,6 +107,15 @@ def _on_render_mode(self, context) -> None:
         effect.enable_effect(self.id_data)
 
 
+def _on_quality(self, context) -> None:
+    if self.enabled:
+        from . import quality_choice, settings_io, sync
+
+        if not settings_io.is_batched(self.id_data):
+            quality_choice.resolve(self.id_data)
+            sync.sync_scene(self.id_data)
+
+
 def _poll_sun(self, obj) -> bool:
     return obj.type == "LIGHT" and obj.data.type == "SUN"
 
@@ -361,6 +370,47 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         default="COMPOSITOR",
         update=_on_render_mode,
     )
+    quality: EnumProperty(
+        name="Quality",
+        description="How the aerial perspective follows the atmosphere's density along each view ray",
+        items=(
+            ("FAST", "Fast", "Constant sea-level density along the ray (Hoffman & Preetham 2002): ground-level "
+                             "views of nearby land; the cheapest graph"),
+            ("BALANCED", "Balanced", "Density falling with altitude along the curved ray, in closed form: drones, "
+                                     "aircraft, mountains, distant ranges; about 2.3x the nodes of Fast"),
+            ("AUTO", "Auto", "Pick the cheapest level whose measured error for this scene (camera and geometry "
+                             "heights, view distances, sun) stays under the tolerance; re-evaluated on Refresh"),
+        ),
+        default="FAST",
+        update=_on_quality,
+    )
+    auto_tolerance: FloatProperty(
+        name="Tolerance",
+        description="Largest relative pixel error Auto accepts, in percent (measured against brute-force single "
+                    "scattering; see docs/quality.md)",
+        default=2.0,
+        min=0.1,
+        max=100.0,
+        soft_max=20.0,
+        subtype="PERCENTAGE",
+        update=_on_quality,
+    )
+    origin_altitude: FloatProperty(
+        name="Origin Altitude (m)",
+        description="Altitude above sea level of the world origin (z = 0), in metres. Balanced quality thins the "
+                    "air with altitude: a scene modelled around z = 0 on a 1500 m plateau sets 1500",
+        default=0.0,
+        min=-1000.0,
+        max=100000.0,
+        soft_max=10000.0,
+        update=_on_parameter,
+    )
+    auto_level: StringProperty(
+        name="Auto Level",
+        description="The level Auto chose (read-only: written by Atmos)",
+        default="fast",
+    )
+    status_quality: StringProperty(name="Quality", description="The quality level in use and its expected error")
     sky_ground: EnumProperty(
         name="Ground",
         description="What the sky shows below the horizon",

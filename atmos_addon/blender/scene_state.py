@@ -22,7 +22,8 @@ from . import sun_lamp
 #: from restores them.
 DERIVED_SETTINGS = frozenset({"rna_type", "enabled", "haze_visibility", "air_density", "sun_elevation",
                               "sun_azimuth", "sun_colour_display", "sun_strength_display", "status_built",
-                              "status_sun", "status_materials", "status_objects"})
+                              "status_sun", "status_materials", "status_objects", "status_quality",
+                              "auto_level"})
 
 #: Render settings a contact sheet changes (attribute paths from the scene), restored in this order.
 RENDER_PATHS = (
@@ -44,7 +45,7 @@ RENDER_PATHS = (
 
 #: ``scene.atmos`` values the sync writes (no update callbacks): put back after the restoring sync.
 SYNC_WRITTEN = ("status_built", "status_sun", "status_materials", "status_objects", "sun_colour_display",
-                "sun_strength_display")
+                "sun_strength_display", "status_quality", "auto_level")
 
 #: Scene custom properties Atmos keeps bookkeeping in (the sun lamp it created, for disabling to remove).
 SCENE_KEYS = (sun_lamp.LAMP_STATE_KEY,)

@@ -18,6 +18,7 @@ from mathutils import Vector
 from .. import import_sibling
 from . import group_integrity
 from ..physics import Atmosphere, sun_irradiance_ground
+from ..physics.balanced import sun_optical_depths_ground
 from ..physics.sun import LUMINANCE_WEIGHTS
 from .settings_io import FIELD_MAP, atmosphere_from_settings  # noqa: F401  (re-exported for callers of sync)
 
@@ -39,11 +40,16 @@ def node_groups():
 
 
 def features_from_settings(settings):
-    """The node-group feature set the settings need (Mie and absorption terms only when non-zero)."""
+    """The node-group feature set the settings need (Mie and absorption terms only when non-zero) and the quality
+    level (:func:`.quality_choice.level_of`; In-Render mode evaluates ray segments with the Fast level)."""
+    from . import in_render, quality_choice
+
     aerial = node_groups().aerial_perspective
+    in_render_mode = in_render.effective_mode(settings.id_data) == "IN_RENDER"
     return aerial.AerialFeatures(
         mie=any(v > 0.0 for v in settings.mie_scattering_per_km),
         absorption=any(v > 0.0 for v in settings.mie_absorption_per_km),
+        level="fast" if in_render_mode else quality_choice.level_of(settings),
     )
 
 
@@ -120,7 +126,8 @@ def _atmosphere(scene, settings) -> tuple[tuple, Atmosphere]:
 
 
 def _sun_values(scene, key: tuple, atmosphere: Atmosphere, elevation_rad: float, sun_radius: float):
-    """E_sun at the ground, and the lamp's colour and strength (as :func:`sun_color_and_strength` splits it), cached."""
+    """E_sun at the ground, the lamp's colour and strength (as :func:`sun_color_and_strength` splits it) and the
+    sun's ground optical depths (tau_R, tau_M) of the Balanced level, cached."""
     sun_key = (key, elevation_rad, sun_radius)
     cached = _last_sun_values.get(scene.name)
     if cached is not None and cached[0] == sun_key:
@@ -128,8 +135,9 @@ def _sun_values(scene, key: tuple, atmosphere: Atmosphere, elevation_rad: float,
     irradiance = np.asarray(sun_irradiance_ground(elevation_rad, atmosphere, 0.0, sun_radius), dtype=float)
     strength = float(irradiance @ LUMINANCE_WEIGHTS)
     colour = tuple(float(c) for c in irradiance / strength) if strength > 0.0 else (1.0, 1.0, 1.0)
-    _last_sun_values[scene.name] = (sun_key, irradiance, colour, strength)
-    return irradiance, colour, strength
+    depths = sun_optical_depths_ground(elevation_rad, atmosphere)
+    _last_sun_values[scene.name] = (sun_key, irradiance, colour, strength, depths)
+    return irradiance, colour, strength, depths
 
 
 def atmosphere_of(scene) -> Atmosphere:
@@ -152,7 +160,7 @@ def sync_scene(scene) -> None:
     elevation_rad = math.asin(float(np.clip(direction[2], -1.0, 1.0)))
     diameter = float(settings.sun_angular_diameter)
     sun_radius = 0.5 * diameter
-    irradiance, colour, strength = _sun_values(scene, key, atmosphere, elevation_rad, sun_radius)
+    irradiance, colour, strength, sun_depths = _sun_values(scene, key, atmosphere, elevation_rad, sun_radius)
     enabled = settings.enabled
     if enabled:
         ensure_group(scene)  # cheap when current; rebuilds in place when the feature set changed
@@ -174,6 +182,9 @@ def sync_scene(scene) -> None:
         sun_angular_radius=sun_radius,
         sun_limb_darkening=settings.sun_limb_darkening,
         ground_albedo=tuple(settings.ground_albedo),
+        origin_altitude=float(settings.origin_altitude),
+        sun_optical_depth_rayleigh=sun_depths[0],
+        sun_optical_depth_mie=sun_depths[1],
     )
     _set_if_changed(settings, "status_sun", sun_status)
     from . import in_render

@@ -232,6 +232,11 @@ class ATMOS_PT_atmosphere_aerial(_SubPanel, bpy.types.Panel):
         settings = _settings(context)
         layout = _split(self.layout)
         layout.prop(settings, "distance_scale")
+        layout.prop(settings, "quality")
+        if settings.quality == "AUTO":
+            layout.prop(settings, "auto_tolerance")
+        if settings.quality != "FAST":
+            layout.prop(settings, "origin_altitude")
         layout.operator("atmos.refresh", icon="FILE_REFRESH")
         if not settings.enabled:
             return
@@ -242,7 +247,8 @@ class ATMOS_PT_atmosphere_aerial(_SubPanel, bpy.types.Panel):
                 box.label(text=group_integrity.warning(name), icon="ERROR")
             box.operator("atmos.reset_groups", icon="LOOP_BACK")
         status = layout.column(align=True)
-        for line in (settings.status_built, settings.status_sun, settings.status_materials, settings.status_objects):
+        for line in (settings.status_quality, settings.status_built, settings.status_sun, settings.status_materials,
+                     settings.status_objects):
             if line:
                 status.label(text=line)
         if len(settings.skipped_materials):

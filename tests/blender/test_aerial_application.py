@@ -394,3 +394,44 @@ def test_cutout_does_not_catch_its_own_atmosphere_in_cycles(kind: str, tmp_path:
     expected_card = _expected(scene, (0.2, 0.2, 0.2), 300.0 / _pixel_direction(*card)[1], *card)
     np.testing.assert_allclose(pixels[hole[1], hole[0]], expected_far, rtol=3e-3)
     np.testing.assert_allclose(pixels[card[1], card[0]], expected_card, rtol=3e-3)
+
+
+# -- the Balanced quality level, end to end ----------------------------------------------------------------
+
+
+def _expected_balanced(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
+    """L0 F_ex + L_in of ``physics.balanced`` for the camera at the scene's origin altitude (it sits at z = 0)."""
+    from atmos_addon.physics.balanced import extinction_balanced, inscattering_balanced, sun_optical_depths_ground
+
+    atmosphere = sync.atmosphere_from_settings(scene.atmos)
+    sun_dir, _ = sync.sun_direction(scene)
+    elevation = math.asin(sun_dir[2])
+    e_sun = sun_irradiance_ground(elevation, atmosphere)
+    metres = distance * sync.metres_per_unit(scene)
+    view = np.array(_pixel_direction(column, row))
+    h0 = scene.atmos.origin_altitude
+    return (np.asarray(radiance) * extinction_balanced(h0, view, metres, atmosphere)
+            + inscattering_balanced(h0, view, metres, float(view @ sun_dir), atmosphere, e_sun,
+                                    sun_optical_depths=sun_optical_depths_ground(elevation, atmosphere)))
+
+
+@pytest.mark.parametrize("engine, tolerance", [("CYCLES", 2e-3), (EEVEE, 1e-2)])
+def test_balanced_level_composites_the_physics(engine: str, tolerance: float, tmp_path: Path) -> None:
+    """An aircraft 3 km up (the origin altitude): the composited pixels are ``physics.balanced``, far from Fast."""
+    scene, sun = _render_scene(engine)
+    for name, radiance, distance, column, row in PLANES:
+        _emissive_plane(name, radiance, distance, column, row)
+    scene.atmos.sky_enabled = False
+    scene.atmos.quality = "BALANCED"
+    scene.atmos.origin_altitude = 3000.0
+    sun.rotation_euler = (math.radians(30), 0, math.radians(40))
+    effect.enable_effect(scene)
+    assert bpy.data.node_groups["Atmos Aerial Perspective"]["atmos_features"].endswith("+balanced")
+    pixels = _render(scene, tmp_path, f"{engine}_balanced")
+    for name, radiance, distance, column, row in PLANES:
+        expected = _expected_balanced(scene, radiance, distance, column, row)
+        got = pixels[row, column]
+        print(f"balanced {engine} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
+        assert np.allclose(got, expected, rtol=tolerance, atol=0), (engine, name, got, expected)
+        fast = _expected(scene, radiance, distance, column, row)
+        assert name == "Near" or np.max(np.abs(fast / expected - 1)) > 0.05  # the levels differ here

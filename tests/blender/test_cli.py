@@ -155,9 +155,23 @@ def test_apply_in_render_mode_writes_the_domes(workdir: Path) -> None:
     assert "Atmos Dome (molecules)" in objects and "Atmos Dome (aerosols)" in objects
 
 
+def test_apply_with_a_quality_level(workdir: Path) -> None:
+    out = workdir / "balanced.blend"
+    proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--quality", "balanced",
+                   "--output", str(out), cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "atmos: Balanced: Density falling with altitude" in proc.stderr
+    proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--quality", "auto",
+                   "--output", str(workdir / "auto.blend"), cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "atmos: Auto chose " in proc.stderr
+
+
 @pytest.mark.parametrize(
     "args, fragments",
     [
+        (("render", "camera.blend", "--preset", "clear", "--quality", "precise", "--output", "x.png"),
+         ("--quality", "precise")),
         (("render", "missing.blend", "--preset", "clear", "--output", "x.png"), ("missing.blend", "does not exist")),
         (("render", "garbage.blend", "--preset", "clear", "--output", "x.png"), ("garbage.blend", "cannot read")),
         (("render", "camera.blend", "--preset", "no-such-preset", "--output", "x.png"), ("no-such-preset",)),

@@ -25,6 +25,7 @@ from node_groups import (AERIAL_PARAMETER_NAMES, GROUP_NAME, NODE_GROUP_VERSION,
                          OUTPUT_TRANSMITTANCE, AerialFeatures, clear_shader_parameters, describe_features,
                          ensure_aerial_perspective_group, node_count, read_shader_parameters, write_shader_parameters)
 from node_groups.aerial_perspective import NODE_COUNTS
+from node_groups.parameters import BALANCED_PARAMETER_NAMES
 
 WIDTH, HEIGHT = 12, 8
 FOV = math.radians(60.0)
@@ -93,10 +94,11 @@ def _weighted_emission_material(group: bpy.types.ShaderNodeTree) -> bpy.types.Ma
     return material
 
 
-def _parity_scene(features: AerialFeatures = AerialFeatures()):
+def _parity_scene(features: AerialFeatures = AerialFeatures(), location=(0.0, 0.0, 0.0),
+                  rotation_euler=(math.radians(95.0), 0.0, math.radians(20.0))):
     """Camera looking along +Y (tilted a little), six planes: three depths x (transmittance, inscattering)."""
     scene = ru.reset_scene()
-    camera = ru.make_camera(scene, rotation_euler=(math.radians(95.0), 0.0, math.radians(20.0)), fov_rad=FOV,
+    camera = ru.make_camera(scene, location=location, rotation_euler=rotation_euler, fov_rad=FOV,
                             clip_start=10.0, clip_end=1.0e5)
     bpy.context.view_layer.update()
     material = _weighted_emission_material(ensure_aerial_perspective_group(features))
@@ -244,14 +246,25 @@ def test_features_build_only_the_terms_needed():
             hg_nodes[features.key] = sum(1 for n in tree.nodes if n.label == "Phi_HG")
             attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
             assert describe_features(features).endswith(f": {counts[features.key]} nodes")
-    assert counts == NODE_COUNTS
+    assert counts == {key: count for key, count in NODE_COUNTS.items() if not key.endswith("+balanced")}
     assert hg_nodes == {"rayleigh": 0, "rayleigh+abs": 0, "rayleigh+mie": 1, "rayleigh+mie+abs": 1}
     assert counts["rayleigh"] < counts["rayleigh+abs"] < counts["rayleigh+mie"] < counts["rayleigh+mie+abs"]
     assert "atmos_beta_mie" not in attributes["rayleigh+abs"] and "atmos_mie_g" not in attributes["rayleigh"]
     assert "atmos_beta_mie_absorption" not in attributes["rayleigh+mie"]
-    assert attributes["rayleigh+mie+abs"] == set(AERIAL_PARAMETER_NAMES)
+    assert attributes["rayleigh+mie+abs"] == set(AERIAL_PARAMETER_NAMES) - set(BALANCED_PARAMETER_NAMES)
     full = NODE_COUNTS["rayleigh+mie+abs"]
-    assert describe_features(AerialFeatures(True, True)) == f"Rayleigh + Mie + absorption: {full} nodes"
+    assert describe_features(AerialFeatures(True, True)) == f"Fast, Rayleigh + Mie + absorption: {full} nodes"
+    for mie in (False, True):
+        for absorption in (False, True):
+            features = AerialFeatures(mie=mie, absorption=absorption, level="balanced")
+            tree = ensure_aerial_perspective_group(features)
+            counts[features.key] = node_count(tree)
+            attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
+            assert describe_features(features).startswith("Balanced, ")
+    assert counts == NODE_COUNTS
+    assert attributes["rayleigh+mie+abs+balanced"] == set(AERIAL_PARAMETER_NAMES)
+    assert "atmos_beta_mie" not in attributes["rayleigh+abs+balanced"]
+    assert "atmos_mie_g" not in attributes["rayleigh+balanced"]
 
 
 def test_parameters_round_trip_validate_and_clear():
@@ -315,3 +328,73 @@ def test_render_utils_reads_linear_values():
     assert image.shape == (4, 6, 4)
     np.testing.assert_allclose(image[..., :3], np.broadcast_to((0.25, 2.0, 1e-4), (4, 6, 3)), rtol=1e-6)
     assert time.time() - start < 30.0
+
+
+# -- the Balanced level -----------------------------------------------------------------------------------
+
+#: (camera location in units, rotation, metres per unit, origin altitude m, sun): a drone 2 km up looking 25 deg
+#: down (its 20 km plane lies below the ground: the profile is clamped there), and a camera on a 500 m plateau
+#: with 10 m units looking 5 deg up at planes 3 to 200 km away.
+BALANCED_CASES = (
+    ((0.0, 0.0, 2000.0), (math.radians(65.0), 0.0, math.radians(20.0)), 1.0, 0.0, (0.3, 0.5, 0.6)),
+    ((0.0, 0.0, 10.0), (math.radians(95.0), 0.0, math.radians(-30.0)), 10.0, 500.0, (-0.2, 0.9, 0.15)),
+)
+
+
+def _write_balanced(scene, atm: Atmosphere, sun_direction, metres_per_unit: float, origin_altitude: float):
+    """Parameters as the add-on writes them; E_sun is the ground sun of the atmosphere (the graph relies on
+    E_sun exp(tau_sun) <= E_top, which an arbitrary E_sun need not satisfy). Returns (taus, E_sun)."""
+    from atmos_addon.physics import sun_irradiance_ground
+    from atmos_addon.physics.balanced import sun_optical_depths_ground
+
+    sun = _unit(sun_direction)
+    tau_r, tau_m = sun_optical_depths_ground(math.asin(sun[2]), atm)
+    e_sun = sun_irradiance_ground(math.asin(sun[2]), atm)
+    write_shader_parameters(scene, beta_rayleigh=atm.rayleigh_scattering, beta_mie=atm.mie_scattering,
+                            beta_mie_absorption=atm.mie_absorption, mie_g=atm.mie_g, sun_direction=sun,
+                            sun_irradiance=e_sun, metres_per_unit=metres_per_unit,
+                            planet_radius=atm.planet_radius, rayleigh_scale_height=atm.rayleigh_scale_height,
+                            mie_scale_height=atm.mie_scale_height, origin_altitude=origin_altitude,
+                            sun_optical_depth_rayleigh=tau_r, sun_optical_depth_mie=tau_m)
+    return (tau_r, tau_m), e_sun
+
+
+def _expected_balanced(camera, metres_per_unit: float, origin_altitude: float, sun_direction, taus, e_sun,
+                       atm: Atmosphere = ATMOSPHERE) -> np.ndarray:
+    """``physics.balanced`` in float32 for every pixel-centre ray of the parity scene, (HEIGHT, WIDTH, 3)."""
+    from atmos_addon.physics.balanced import extinction_balanced, inscattering_balanced
+
+    directions = ru.pixel_centre_directions(camera, WIDTH, HEIGHT)
+    forward = -np.array(camera.matrix_world.to_3x3().col[2], dtype=np.float64)
+    depth = np.repeat(np.array(DEPTHS_UNITS), WIDTH // 3)[np.newaxis, :]
+    distance_m = depth / (directions @ forward) * metres_per_unit
+    h0 = origin_altitude + camera.matrix_world.translation.z * metres_per_unit
+    mu = directions @ _unit(sun_direction)
+    transmittance = extinction_balanced(h0, directions, distance_m, atm, np.float32)
+    light = inscattering_balanced(h0, directions, distance_m, mu, atm, e_sun, np.float32, sun_optical_depths=taus)
+    gain = (GAIN_NUMERATOR / depth)[..., np.newaxis]
+    top = np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2
+    return np.where(top, transmittance, light * gain)
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_balanced_group_matches_physics_core(engine):
+    """The Balanced graph is ``physics.balanced`` (curved ray, exponential profiles, sun at altitude)."""
+    worst = 0.0
+    for location, rotation, metres_per_unit, origin, sun in BALANCED_CASES:
+        scene, camera = _parity_scene(AerialFeatures(level="balanced"), location, rotation)
+        ru.set_engine(scene, engine, width=WIDTH, height=HEIGHT)
+        taus, e_sun = _write_balanced(scene, ATMOSPHERE, sun, metres_per_unit, origin)
+        image = ru.render_to_array(scene)[..., :3]
+        expected = _expected_balanced(camera, metres_per_unit, origin, sun, taus, e_sun)
+        fast = _expected(camera, metres_per_unit, sun) * np.where(  # Fast with the same E_sun
+            np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2, 1.0, e_sun / np.array(SUN_IRRADIANCE))
+        relative = np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
+        assert np.all(np.isfinite(image))
+        assert relative.max() < TOLERANCE[engine], (
+            f"{engine} camera {location}: worst relative error {relative.max():.2e} at pixel "
+            f"{np.unravel_index(relative.argmax(), relative.shape)}")
+        # The case is one where the levels differ: the test would fail on the Fast graph.
+        assert (np.abs(fast - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)).max() > 0.1
+        worst = max(worst, float(relative.max()))
+    print(f"\n{engine} Balanced (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")

@@ -1,0 +1,132 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The quality level a scene renders with: the user's choice, or Auto's from a summary of the scene.
+
+Auto (``physics.quality.choose_level``) needs what the bench cases are told apart by: the camera's altitude
+range over the frame range, the altitude span of the geometry, the farthest geometry from the camera, the sun's
+elevation and whether it moves, whether the haze and its absorption are zero, and the planet. :func:`summarize`
+reads them from the scene (lengths in m: scene units times metres per unit, plus the origin altitude);
+:func:`resolve` stores the choice in ``scene.atmos.auto_level`` and a status line. It runs on enable, Refresh and a
+change of the quality setting, not per slider drag (the summary walks every object's bounding box).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from mathutils import Vector
+
+from ..physics.quality import LEVEL_DESCRIPTIONS, Level, SceneSummary, choose_level, nearest_cases
+from . import sun_lamp, sync
+
+#: Object types with geometry the camera sees (their bounding boxes count for the summary).
+GEOMETRY_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "META", "FONT", "VOLUME", "POINTCLOUD", "CURVES"})
+#: Frames sampled for an animated camera (start, end and evenly between).
+CAMERA_SAMPLES = 5
+
+
+def _animated(obj) -> bool:
+    """True if ``obj`` or a parent is animated or constrained."""
+    while obj is not None:
+        animation = obj.animation_data
+        if (animation is not None and (animation.action is not None or len(animation.drivers) > 0)) \
+                or len(obj.constraints) > 0:
+            return True
+        obj = obj.parent
+    return False
+
+
+def _camera_heights(scene, camera) -> list[float]:
+    """World z of the camera (scene units) at the current frame, or over the frame range when it moves."""
+    if not _animated(camera):
+        return [camera.matrix_world.translation.z]
+    current, subframe = scene.frame_current, scene.frame_subframe
+    start, end = scene.frame_start, scene.frame_end
+    frames = sorted({round(start + (end - start) * i / (CAMERA_SAMPLES - 1)) for i in range(CAMERA_SAMPLES)})
+    heights = []
+    try:
+        for frame in frames:
+            scene.frame_set(frame)
+            heights.append(camera.matrix_world.translation.z)
+    finally:
+        scene.frame_set(current, subframe=subframe)
+    return heights
+
+
+def _geometry_corners(scene) -> np.ndarray:
+    """World-space bounding-box corners of every visible geometry object, (n, 3) in scene units."""
+    corners = []
+    for obj in scene.objects:
+        if obj.type not in GEOMETRY_TYPES or obj.hide_render:
+            continue
+        matrix = obj.matrix_world
+        corners.extend(tuple(matrix @ Vector(corner)) for corner in obj.bound_box)
+    return np.array(corners, dtype=np.float64).reshape(-1, 3)
+
+
+def summarize(scene) -> SceneSummary:
+    """The :class:`~atmos_addon.physics.quality.SceneSummary` of ``scene`` (lengths m, angles deg)."""
+    settings = scene.atmos
+    if len(scene.view_layers):
+        scene.view_layers[0].update()  # objects moved by a script since the last evaluation: current matrices
+    metres = sync.metres_per_unit(scene)
+    origin = float(settings.origin_altitude)
+    camera = scene.camera
+    heights = [origin + z * metres for z in _camera_heights(scene, camera)] if camera is not None else [origin]
+    corners = _geometry_corners(scene)
+    if len(corners) and camera is not None:
+        span = float(np.ptp(corners[:, 2])) * metres
+        position = np.array(camera.matrix_world.translation)
+        farthest = float(np.max(np.linalg.norm(corners - position, axis=1)))
+        if camera.type == "CAMERA":
+            farthest = min(farthest, float(camera.data.clip_end))
+        distance = farthest * metres
+    else:
+        span, distance = 0.0, 0.0
+    direction, _ = sync.sun_direction(scene)
+    elevation = math.degrees(math.asin(float(np.clip(direction[2], -1.0, 1.0))))
+    atmosphere = sync.atmosphere_of(scene)
+    return SceneSummary(camera_altitude_range_m=(min(heights), max(heights)), geometry_altitude_span_m=span,
+                        max_view_distance_m=distance, sun_elevation_deg=elevation,
+                        mie_zero=not np.any(atmosphere.mie_scattering > 0.0),
+                        absorption_zero=not np.any(atmosphere.mie_absorption > 0.0),
+                        sun_animated=sun_lamp.is_sun_animated(scene), planet_radius_m=atmosphere.planet_radius)
+
+
+def level_of(settings) -> str:
+    """The level the node group is built for: "fast" or "balanced" (Auto's last choice for AUTO)."""
+    if settings.quality == "AUTO":
+        return settings.auto_level if settings.auto_level in ("fast", "balanced") else "fast"
+    return settings.quality.lower()
+
+
+def resolve(scene) -> str:
+    """Resolve Auto for ``scene`` (summary, choice, status line) and return the level the settings ask for.
+
+    In-Render mode builds its ray-segment graph with Fast whatever the level (a reflected ray does not start
+    at the camera, whose altitude the Balanced graph takes from the camera ray); the status line says so.
+    """
+    from . import in_render
+
+    settings = scene.atmos
+    level = _resolve(scene, settings)
+    if level != "fast" and in_render.effective_mode(scene) == "IN_RENDER":
+        sync._set_if_changed(settings, "status_quality", f"{settings.status_quality}. In-Render mode applies Fast "
+                             "on every ray segment")
+    return level
+
+
+def _resolve(scene, settings) -> str:
+    if settings.quality != "AUTO":
+        line = f"{settings.quality.capitalize()}: {LEVEL_DESCRIPTIONS[Level(settings.quality.lower())]}"
+        sync._set_if_changed(settings, "status_quality", line)
+        return level_of(settings)
+    summary = summarize(scene)
+    level, error = choose_level(summary, tolerance=settings.auto_tolerance / 100.0)
+    situations = ", ".join(name.replace("_", " ") for name in nearest_cases(summary))
+    verdict = "within" if error <= settings.auto_tolerance / 100.0 else "best available, over"
+    line = (f"Auto chose {level.value.capitalize()}: expected error {100.0 * error:.1f}% ({verdict} the "
+            f"{settings.auto_tolerance:g}% tolerance) for {situations}")
+    sync._set_if_changed(settings, "auto_level", level.value)
+    sync._set_if_changed(settings, "status_quality", line)
+    return level.value

@@ -1,0 +1,158 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Quality levels in the add-on: the setting, Auto's choice, what the group contains, the parameters written.
+
+The Balanced graph's numbers are tested against the physics core in test_node_groups (the group alone) and
+test_aerial_application (composited, end to end); here: which graph a scene gets and why.
+"""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+import atmos_addon
+from atmos_addon.blender import effect, in_render, quality_choice
+from atmos_addon.physics.balanced import CURVATURE_PIECES, sun_optical_depths_ground
+from atmos_addon.physics.quality import SceneSummary
+from node_groups import balanced as balanced_nodes
+from render_utils import emission_material
+
+GROUP = "Atmos Aerial Perspective"
+
+
+@pytest.fixture(autouse=True)
+def addon():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    atmos_addon.register()
+    yield
+    atmos_addon.unregister()
+
+
+def _scene(camera_z: float = 2.0, far: float = 3000.0):
+    """A camera ``camera_z`` units up looking along +Y, a sun lamp, and a ground plane reaching ``far`` units."""
+    scene = bpy.context.scene
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0.0, 0.0, camera_z)
+    camera.rotation_euler = (math.radians(85.0), 0.0, 0.0)
+    camera.data.clip_end = 1.0e6
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.rotation_euler = (math.radians(40.0), 0.0, 0.0)
+    scene.collection.objects.link(sun)
+    mesh = bpy.data.meshes.new("Ground")
+    mesh.from_pydata([(-far, 0, 0), (far, 0, 0), (far, far, 0), (-far, far, 0)], [], [(0, 1, 2, 3)])
+    mesh.materials.append(emission_material("Ground", (0.1, 0.1, 0.1)))
+    scene.collection.objects.link(bpy.data.objects.new("Ground", mesh))
+    return scene
+
+
+def test_node_and_physics_piece_counts_agree():
+    assert balanced_nodes.PIECES == CURVATURE_PIECES
+
+
+def test_quality_switch_edits_the_same_group_and_materials_keep_it():
+    scene = _scene()
+    effect.enable_effect(scene)
+    tree = bpy.data.node_groups[GROUP]
+    assert tree["atmos_features"] == "rayleigh+mie+abs" and scene.atmos.status_quality.startswith("Fast")
+    groups_before = len(bpy.data.node_groups)
+    pointer = tree.as_pointer()
+    scene.atmos.quality = "BALANCED"
+    tree = bpy.data.node_groups[GROUP]
+    assert tree.as_pointer() == pointer and tree["atmos_features"] == "rayleigh+mie+abs+balanced"
+    assert len(tree.nodes) == balanced_nodes_count() and len(bpy.data.node_groups) == groups_before
+    assert scene.atmos.status_built.startswith("Balanced, ") and scene.atmos.status_quality.startswith("Balanced")
+    material = bpy.data.materials["Ground"]
+    users = [n for n in material.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"]
+    assert any(_uses(n.node_tree, tree) for n in users)
+    scene.atmos.quality = "FAST"
+    assert bpy.data.node_groups[GROUP]["atmos_features"] == "rayleigh+mie+abs"
+    effect.disable_effect(scene)
+    for name in ("atmos_origin_altitude", "atmos_sun_optical_depth_rayleigh", "atmos_sun_optical_depth_mie"):
+        assert name not in scene
+
+
+def balanced_nodes_count() -> int:
+    from node_groups.aerial_perspective import NODE_COUNTS
+
+    return NODE_COUNTS["rayleigh+mie+abs+balanced"]
+
+
+def _uses(tree, target) -> bool:
+    """True if ``tree`` is ``target`` or holds a group node that (recursively) uses it."""
+    if tree is None:
+        return False
+    if tree.as_pointer() == target.as_pointer():
+        return True
+    return any(_uses(n.node_tree, target) for n in tree.nodes if n.bl_idname == "ShaderNodeGroup")
+
+
+def test_balanced_parameters_follow_the_sun_and_the_origin_altitude():
+    scene = _scene()
+    scene.atmos.quality = "BALANCED"
+    effect.enable_effect(scene)
+    scene.atmos.origin_altitude = 1500.0
+    assert scene["atmos_origin_altitude"] == pytest.approx(1500.0)
+    sun = bpy.data.objects["Sun"]
+    for tilt in (40.0, 88.0, 95.0):  # sun 50 deg, 2 deg and -5 deg above the horizon
+        sun.rotation_euler = (math.radians(tilt), 0.0, 0.0)
+        bpy.context.view_layer.update()
+        elevation = math.radians(90.0 - tilt)
+        tau_r, tau_m = sun_optical_depths_ground(elevation, atmos_addon.blender.sync.atmosphere_of(scene))
+        np.testing.assert_allclose(scene["atmos_sun_optical_depth_rayleigh"], np.minimum(tau_r, 50.0), rtol=1e-6)
+        np.testing.assert_allclose(scene["atmos_sun_optical_depth_mie"], np.minimum(tau_m, 50.0), rtol=1e-6)
+        assert np.all(np.isfinite(scene["atmos_sun_optical_depth_mie"]))
+
+
+def test_auto_picks_balanced_for_a_drone_and_fast_when_the_tolerance_allows():
+    scene = _scene(camera_z=2000.0)
+    scene.atmos.quality = "AUTO"
+    effect.enable_effect(scene)
+    assert scene.atmos.auto_level == "balanced"
+    assert bpy.data.node_groups[GROUP]["atmos_features"].endswith("+balanced")
+    assert "Auto chose Balanced" in scene.atmos.status_quality and "drone" in scene.atmos.status_quality
+    scene.camera.location.z = 2.0
+    scene.atmos.auto_tolerance = 20.0  # Fast's measured ground-vista error, 12.9 %, is within 20 %
+    assert scene.atmos.auto_level == "fast"
+    assert bpy.data.node_groups[GROUP]["atmos_features"] == "rayleigh+mie+abs"
+    assert "Auto chose Fast" in scene.atmos.status_quality
+
+
+def test_auto_summary_reads_the_scene():
+    scene = _scene(camera_z=10.0, far=40_000.0)
+    scene.atmos.origin_altitude = 100.0
+    scene.unit_settings.scale_length = 2.0
+    camera = scene.camera
+    camera.location.z = 10.0
+    camera.keyframe_insert("location", frame=1)
+    camera.location.z = 60.0
+    camera.keyframe_insert("location", frame=scene.frame_end)
+    scene.frame_set(7)
+    summary = quality_choice.summarize(scene)
+    assert scene.frame_current == 7  # the sampled frames are undone
+    assert summary.camera_altitude_range_m == pytest.approx((100.0 + 20.0, 100.0 + 120.0))
+    assert summary.geometry_altitude_span_m == pytest.approx(0.0)
+    corner = math.hypot(40_000.0, 40_000.0)  # the ground's far corners, from the camera where it is now
+    height = camera.matrix_world.translation.z
+    assert summary.max_view_distance_m == pytest.approx(2.0 * math.hypot(corner, height), rel=1e-6)
+    assert summary.sun_elevation_deg == pytest.approx(50.0, abs=1e-4)
+    assert not summary.sun_animated and not summary.mie_zero
+    assert isinstance(summary, SceneSummary)
+
+
+def test_in_render_mode_builds_fast_segments_and_says_so():
+    if not in_render.supported():
+        pytest.skip("In-Render mode needs Blender 4.5+")
+    scene = _scene()
+    scene.render.engine = "CYCLES"
+    scene.atmos.render_mode = "IN_RENDER"
+    scene.atmos.quality = "BALANCED"
+    effect.enable_effect(scene)
+    assert in_render.is_installed(scene)
+    assert "In-Render mode applies Fast" in scene.atmos.status_quality
+    stamped = [t.get("atmos_features", "") for t in bpy.data.node_groups]
+    assert not any(key.endswith("+balanced") for key in stamped)

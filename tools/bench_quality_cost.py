@@ -1,0 +1,144 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Render cost of each quality level on the sample valley: effect off, Fast, Balanced; Cycles and Eevee.
+
+    .venv/bpy-5.0.1/bin/python tools/bench_quality_cost.py [--engines cycles,eevee] [--resolution 320x180]
+        [--samples 64] [--repeats 3]
+
+Method. The valley (``sample_scenes/valley.py``) is built once and rendered in Compositor mode (the mode both
+engines share) with ``api.enable(scene, preset, quality=...)``: "off" is the effect disabled (the valley's
+plain world), "fast" and "balanced" the two levels (the Atmos sky is the same for both). Cycles renders on the
+CPU with ``samples`` samples, adaptive sampling off, a fixed seed and denoising off; Eevee with ``samples``
+TAA samples. Each repeat renders the three configurations once, the order rotated from one repeat to the
+next (slow drift of the machine falls on all alike). Before the repeats each configuration renders once
+untimed: Cycles loads its kernels, Eevee compiles the configuration's shaders (its cache then serves the
+timed renders, so shader compilation is reported apart: the first, untimed render of each configuration).
+The time is the wall time of ``bpy.ops.render.render`` (no file written). The table gives medians, the
+ratio to "off", every single time, and the node count of the aerial-perspective group. Not a test: nothing fails.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO_ROOT))
+
+import bpy  # noqa: E402
+
+import atmos_addon  # noqa: E402
+from atmos_addon import api  # noqa: E402
+from sample_scenes import valley  # noqa: E402
+
+CONFIGS = ("off", "fast", "balanced")
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def eevee_engine_id() -> str:
+    engines = {item.identifier for item in bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items}
+    return "BLENDER_EEVEE_NEXT" if "BLENDER_EEVEE_NEXT" in engines else "BLENDER_EEVEE"
+
+
+def build(args: argparse.Namespace, engine: str):
+    scene = valley.build(args.resolution)
+    render = scene.render
+    render.resolution_percentage = 100
+    render.threads_mode = "FIXED"
+    render.threads = args.threads
+    if engine == "cycles":
+        render.engine = "CYCLES"
+        cycles = scene.cycles
+        cycles.device = "CPU"
+        cycles.samples = args.samples
+        cycles.use_adaptive_sampling = False
+        cycles.use_denoising = False
+        cycles.seed = 0
+        cycles.use_animated_seed = False
+    else:
+        render.engine = eevee_engine_id()
+        scene.eevee.taa_render_samples = args.samples
+    return scene
+
+
+def configure(scene, config: str, preset: str) -> int:
+    """Put ``scene`` into one configuration (not timed); the aerial group's node count (0 when off)."""
+    if config == "off":
+        api.disable(scene)
+        return 0
+    api.enable(scene, preset=preset, render_mode="COMPOSITOR", quality=config.upper())
+    return len(bpy.data.node_groups["Atmos Aerial Perspective"].nodes)
+
+
+def timed_render(scene) -> float:
+    began = time.perf_counter()
+    bpy.ops.render.render(write_still=False, scene=scene.name)
+    return time.perf_counter() - began
+
+
+def bench_engine(engine: str, args: argparse.Namespace) -> list[str]:
+    scene = build(args, engine)
+    nodes, first = {}, {}
+    for config in CONFIGS:
+        nodes[config] = configure(scene, config, args.preset)
+        first[config] = timed_render(scene)
+        print(f"{engine} {config}: first (untimed) render {first[config]:.2f} s", flush=True)
+    times: dict[str, list[float]] = {config: [] for config in CONFIGS}
+    for repeat in range(args.repeats):
+        order = CONFIGS[repeat % 3:] + CONFIGS[:repeat % 3]
+        for config in order:
+            configure(scene, config, args.preset)
+            times[config].append(timed_render(scene))
+            print(f"{engine} repeat {repeat + 1}/{args.repeats} {config}: {times[config][-1]:.2f} s", flush=True)
+    api.disable(scene)
+    base = statistics.median(times["off"])
+    rows = []
+    for config in CONFIGS:
+        median = statistics.median(times[config])
+        rows.append(f"| {engine} | {config} | {nodes[config]} | {median:.2f} s | {median / base:.2f} | "
+                    f"{first[config]:.2f} s | " + ", ".join(f"{t:.2f}" for t in times[config]) + " s |")
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--engines", default="cycles,eevee")
+    parser.add_argument("--resolution", type=lambda t: tuple(int(p) for p in t.lower().split("x")), default=(320, 180))
+    parser.add_argument("--samples", type=int, default=64)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=2, help="render threads")
+    parser.add_argument("--preset", default="clear")
+    args = parser.parse_args(argv)
+    atmos_addon.register()
+    load_before = " / ".join(f"{v:.1f}" for v in os.getloadavg())
+    rows = []
+    for engine in args.engines.split(","):
+        rows += bench_engine(engine.strip(), args)
+    width, height = args.resolution
+    print(f"\nBlender {bpy.app.version_string}, valley {width}x{height} px, {args.samples} samples, Compositor mode, "
+          f"preset '{args.preset}', {args.threads} threads; {os.cpu_count()} CPU cores (nproc), {cpu_model()}, "
+          f"{platform.system()} {platform.release()}; load average before {load_before}, after "
+          f"{' / '.join(f'{v:.1f}' for v in os.getloadavg())}\n")
+    print("| engine | level | aerial nodes | median render | ratio to off | first render (shader compile) "
+          "| single renders |")
+    print("|---|---|---:|---:|---:|---:|---|")
+    print("\n".join(rows))
+    atmos_addon.unregister()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
