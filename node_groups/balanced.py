@@ -35,7 +35,7 @@ this graph tried, 306 to 369 nodes, compiled that slowly inside the add-on's AOV
 from __future__ import annotations
 
 from . import parameters
-from .dome import cos_theta_to_sun, sun_direction, view_direction
+from .dome import cos_theta_to_sun, sun_direction
 from .graph import GraphBuilder, Socket
 
 #: Straight pieces the curved ray is cut into (``physics.balanced.CURVATURE_PIECES``; a test checks they agree).
