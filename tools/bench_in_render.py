@@ -45,22 +45,14 @@ sys.path.insert(0, str(REPO_ROOT))
 
 import bpy  # noqa: E402
 
+from tools.bench import cpu_model  # noqa: E402  (one definition for the bench tools)
+
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
 from atmos_addon.blender import in_render  # noqa: E402
 from sample_scenes import valley  # noqa: E402
 
 CONFIGS = ("off", "Compositor", "In-Render")
-
-
-def cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def _resolution(text: str) -> tuple[int, int]:
