@@ -323,6 +323,47 @@ def test_farm_render_without_the_addon_matches(tmp_path: Path, quality: str) -> 
     assert difference <= 1e-4
 
 
+
+def test_every_view_layer_gets_the_atmosphere_and_disable_restores_them() -> None:
+    """Two view layers, a Render Layers node for each in the user's compositor: both layers declare the AOVs,
+    each Render Layers node gets its own combining group, a render of both is finite and hazed, and disabling
+    restores the tree and the layers' AOV lists exactly."""
+    scene = bpy.context.scene
+    render_utils.set_engine(scene, "CYCLES", width=8, height=8)
+    scene.cycles.samples = 1
+    camera_looking_north(scene)
+    sun_lamp(scene)
+    world(scene)
+    far = mesh_object("Far", emissive_material("Far", (0.5, 0.5, 0.5)), location=(0.0, 6000.0, 0.0),
+                      half_size=3000.0)
+    far.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    second = scene.view_layers.new("Second")
+    user = second.aovs.add()
+    user.name = "user_pass"
+    tree = render_utils.user_compositor(scene)
+    second_layers = tree.nodes.new("CompositorNodeRLayers")
+    second_layers.layer = second.name
+    before = snapshot(tree)
+    aovs_before = {layer.name: [aov.name for aov in layer.aovs] for layer in scene.view_layers}
+
+    effect.enable_effect(scene)
+    for layer in scene.view_layers:
+        names = {aov.name for aov in layer.aovs}
+        assert {name for name, _ in compositor.AOVS} <= names, layer.name
+    render_layers = [n for n in tree.nodes if n.bl_idname == "CompositorNodeRLayers"]
+    assert len(render_layers) == 2
+    for node in render_layers:
+        targets = [link.to_node for link in node.outputs["Image"].links]
+        assert any(target.get(materials.TAG) for target in targets), f"{node.layer}: no combining group after it"
+    hazed = render_utils.render_to_array(scene)
+    assert np.all(np.isfinite(hazed))
+
+    effect.disable_effect(scene)
+    assert snapshot(tree) == before
+    assert {layer.name: [aov.name for aov in layer.aovs] for layer in scene.view_layers} == aovs_before
+    plain = render_utils.render_to_array(scene)
+    assert np.max(np.abs(hazed - plain)) > 1e-2, "the effect changed nothing: the check above would prove nothing"
+
 # -- undo and its invariants ---------------------------------------------------------------------
 
 
