@@ -25,20 +25,9 @@ GEOMETRY_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "META", "FONT", "VOLUME"
 CAMERA_SAMPLES = 5
 
 
-def _animated(obj) -> bool:
-    """True if ``obj`` or a parent is animated or constrained."""
-    while obj is not None:
-        animation = obj.animation_data
-        if (animation is not None and (animation.action is not None or len(animation.drivers) > 0)) \
-                or len(obj.constraints) > 0:
-            return True
-        obj = obj.parent
-    return False
-
-
 def _camera_heights(scene, camera) -> list[float]:
     """World z of the camera (scene units) at the current frame, or over the frame range when it moves."""
-    if not _animated(camera):
+    if not sun_lamp.moves_over_time(camera):
         return [camera.matrix_world.translation.z]
     current, subframe = scene.frame_current, scene.frame_subframe
     start, end = scene.frame_start, scene.frame_end

@@ -157,7 +157,11 @@ def _animated(idblock) -> bool:
 
 def is_sun_animated(scene: bpy.types.Scene) -> bool:
     """True if the sun lamp's direction can change over time: it, or a parent, is animated or constrained."""
-    obj = sync.sun_object(scene)
+    return moves_over_time(sync.sun_object(scene))
+
+
+def moves_over_time(obj) -> bool:
+    """True if ``obj`` (None: False), or a parent, is animated (action, drivers, NLA) or constrained."""
     while obj is not None:
         if _animated(obj) or len(obj.constraints) > 0:
             return True
