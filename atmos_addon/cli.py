@@ -25,7 +25,7 @@ from . import presets as preset_library
 
 SAMPLE_SCENES = ("valley", "mars")
 ENGINES = ("cycles", "eevee")
-QUALITY_LEVELS = ("fast", "balanced", "auto")
+QUALITY_LEVELS = ("fast", "balanced", "precise", "auto")
 #: --mode values and the scene setting each selects (``scene.atmos.render_mode``).
 MODES = {"compositor": "COMPOSITOR", "in-render": "IN_RENDER"}
 EXIT_ERROR = 2
@@ -348,7 +348,8 @@ def _add_effect_options(parser: argparse.ArgumentParser, *, preset_required: boo
                              "segment, reflections and refractions included); default: the scene's setting")
     parser.add_argument("--quality", choices=QUALITY_LEVELS,
                         help="accuracy level: fast (constant density, Hoffman & Preetham 2002), balanced (density "
-                             "falling with altitude along the curved ray: drones, aircraft, mountains) or auto (the "
+                             "falling with altitude along the curved ray: drones, aircraft, mountains), precise "
+                             "(numerically integrated, baked per frame into a packed table image) or auto (the "
                              "cheapest level within 2%% for the scene); default: the scene's setting")
 
 

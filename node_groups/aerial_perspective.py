@@ -43,6 +43,7 @@ from . import parameters
 from .balanced import balanced_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction, view_direction
 from .graph import GraphBuilder, Socket
+from .precise import precise_terms
 
 #: Name of the node group in ``bpy.data.node_groups``.
 GROUP_NAME = "Atmos Aerial Perspective"
@@ -64,8 +65,8 @@ _FEATURES_KEY = "atmos_features"
 
 
 #: Quality levels the group can be built for: the paper's constant density, or densities falling with altitude
-#: along the curved ray (:mod:`.balanced`).
-LEVELS = ("fast", "balanced")
+#: along the curved ray (:mod:`.balanced`), or the frame's baked table (:mod:`.precise`).
+LEVELS = ("fast", "balanced", "precise")
 
 
 @dataclass(frozen=True)
@@ -90,7 +91,7 @@ class AerialFeatures:
     def key(self) -> str:
         """A stable short name, stamped on the tree: "rayleigh", "rayleigh+mie", "rayleigh+mie+abs+balanced"..."""
         return ("rayleigh" + ("+mie" if self.mie else "") + ("+abs" if self.absorption else "")
-                + ("+balanced" if self.level == "balanced" else ""))
+                + ("" if self.level == "fast" else f"+{self.level}"))
 
 
 # -- the quantities ------------------------------------------------------------------------------------
@@ -247,6 +248,8 @@ def build_aerial_perspective(tree: bpy.types.ShaderNodeTree, features: AerialFea
     view = view_direction(g)
     if features.level == "balanced":
         f_ex, l_in = balanced_terms(g, features, s, view)
+    elif features.level == "precise":
+        f_ex, l_in = precise_terms(g, features, s, view)
     else:
         r_rayleigh, r_mie = dome_distances(g, g.separate(view, label="v")[2])
         s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
@@ -312,4 +315,5 @@ def describe_features(features: AerialFeatures) -> str:
 #: Nodes in the group per feature key for this :data:`NODE_GROUP_VERSION` (group output included).
 NODE_COUNTS = {"rayleigh": 73, "rayleigh+abs": 115, "rayleigh+mie": 143, "rayleigh+mie+abs": 145,
                "rayleigh+balanced": 295, "rayleigh+abs+balanced": 300, "rayleigh+mie+balanced": 330,
-               "rayleigh+mie+abs+balanced": 332}
+               "rayleigh+mie+abs+balanced": 332, "rayleigh+precise": 153, "rayleigh+abs+precise": 153,
+               "rayleigh+mie+precise": 225, "rayleigh+mie+abs+precise": 225}

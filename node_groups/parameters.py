@@ -53,6 +53,12 @@ ORIGIN_ALTITUDE = "atmos_origin_altitude"
 SUN_OPTICAL_DEPTH_RAYLEIGH = "atmos_sun_optical_depth_rayleigh"
 #: Optical depth from the ground to space toward the sun, aerosols (extinction), per channel, capped at 50.
 SUN_OPTICAL_DEPTH_MIE = "atmos_sun_optical_depth_mie"
+#: Precise level, per frame: the table tile's texel origin in the image and the camera altitude, (x0 px, y0 px, h_c m).
+PRECISE_TILE = "atmos_precise_tile"
+#: Precise level, per frame: the table's largest distance D and its top altitude, (D m, top m, 0).
+PRECISE_SCALE = "atmos_precise_scale"
+#: Precise level: the table image's size, (width px, height px, 0).
+PRECISE_ATLAS = "atmos_precise_atlas"
 
 #: The parameters of the aerial-perspective group.
 AERIAL_PARAMETER_NAMES = (BETA_RAYLEIGH, BETA_MIE, BETA_MIE_ABSORPTION, MIE_G, SUN_DIRECTION, SUN_IRRADIANCE,
@@ -60,8 +66,12 @@ AERIAL_PARAMETER_NAMES = (BETA_RAYLEIGH, BETA_MIE, BETA_MIE_ABSORPTION, MIE_G, S
                           SUN_OPTICAL_DEPTH_MIE)
 #: The parameters only the Balanced level reads.
 BALANCED_PARAMETER_NAMES = (ORIGIN_ALTITUDE, SUN_OPTICAL_DEPTH_RAYLEIGH, SUN_OPTICAL_DEPTH_MIE)
-#: Every parameter name, in the order of :func:`write_shader_parameters`' arguments.
-PARAMETER_NAMES = (*AERIAL_PARAMETER_NAMES, SUN_ANGULAR_RADIUS, SUN_LIMB_DARKENING, GROUND_ALBEDO)
+#: The parameters only the Precise level reads (written by the add-on's table bake, keyed with constant
+#: interpolation when the camera or the sun moves, never by :func:`keyframe_shader_parameters`).
+PRECISE_PARAMETER_NAMES = (PRECISE_TILE, PRECISE_SCALE, PRECISE_ATLAS)
+#: Every parameter name, in the order of :func:`write_shader_parameters`' arguments, then the Precise ones.
+PARAMETER_NAMES = (*AERIAL_PARAMETER_NAMES, SUN_ANGULAR_RADIUS, SUN_LIMB_DARKENING, GROUND_ALBEDO,
+                   *PRECISE_PARAMETER_NAMES)
 
 #: Defaults of the dome and sun parameters: the physics core's default (Earth) ``Atmosphere`` and sun
 #: (``atmos_addon.physics``; a test checks they agree). Callers written before the sky existed get these.
@@ -188,7 +198,7 @@ def keyframe_shader_parameters(scene: bpy.types.Scene, frame: float | None = Non
     """Insert a keyframe on every stored parameter at ``frame`` (the current frame by default)."""
     frame = scene.frame_current if frame is None else frame
     for name in PARAMETER_NAMES:
-        if name in scene:
+        if name in scene and name not in PRECISE_PARAMETER_NAMES:
             scene.keyframe_insert(f'["{name}"]', frame=frame)
 
 

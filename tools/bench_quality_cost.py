@@ -39,7 +39,7 @@ import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
 from sample_scenes import valley  # noqa: E402
 
-CONFIGS = ("off", "fast", "balanced")
+CONFIGS = ("off", "fast", "balanced", "precise")
 
 
 def eevee_engine_id() -> str:
@@ -92,7 +92,7 @@ def bench_engine(engine: str, args: argparse.Namespace) -> list[str]:
         print(f"{engine} {config}: first (untimed) render {first[config]:.2f} s", flush=True)
     times: dict[str, list[float]] = {config: [] for config in CONFIGS}
     for repeat in range(args.repeats):
-        order = CONFIGS[repeat % 3:] + CONFIGS[:repeat % 3]
+        order = CONFIGS[repeat % len(CONFIGS):] + CONFIGS[:repeat % len(CONFIGS)]
         for config in order:
             configure(scene, config, args.preset)
             if engine == "eevee":

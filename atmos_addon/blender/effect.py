@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import compositor, in_render, materials, quality_choice, sun_lamp, sync, world
+from . import compositor, in_render, materials, precise_tables, quality_choice, sun_lamp, sync, world
 
 _applying: set[str] = set()
 
@@ -100,6 +100,8 @@ def enable_effect(scene) -> Report:
     if mode_mismatch(scene):
         disable_effect(scene)
     _set_enabled(scene, True)
+    if precise_tables.uses_precise(scene):
+        scene.view_layers[0].update()   # the tables read the camera's matrix: objects moved by a script since
     in_render_mode = in_render.effective_mode(scene) == "IN_RENDER"
     quality_choice.resolve(scene)
     report = _apply_materials(scene, only_new=True)
@@ -119,6 +121,9 @@ def enable_effect(scene) -> Report:
                                                  sync.atmosphere_of(scene), sync.metres_per_unit(scene)))
     if sun_lamp.bake_sun_animation(scene):
         report.messages.append(f"Animated sun: baked to keyframes for frames {scene.frame_start}-{scene.frame_end}")
+    if precise_tables.uses_precise(scene):
+        precise_tables.bake(scene)   # a no-op when sync_scene just baked the same inputs
+        report.messages.append(precise_tables.describe())
     report.messages.append(scene.atmos.status_sun)
     report.messages.append(scene.atmos.status_quality)
     _status(scene, report)
@@ -168,6 +173,7 @@ def disable_effect(scene) -> list[str]:
     world.uninstall_sky(scene)
     sun_lamp.restore_lamp(scene)
     sync.node_groups().parameters.clear_shader_parameters(scene)
+    precise_tables.remove(scene)
     settings = scene.atmos
     settings.status_materials = ""
     settings.status_objects = ""

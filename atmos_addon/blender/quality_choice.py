@@ -83,9 +83,9 @@ def summarize(scene) -> SceneSummary:
 
 
 def level_of(settings) -> str:
-    """The level the node group is built for: "fast" or "balanced" (Auto's last choice for AUTO)."""
+    """The level the node group is built for: "fast", "balanced" or "precise" (Auto's last choice for AUTO)."""
     if settings.quality == "AUTO":
-        return settings.auto_level if settings.auto_level in ("fast", "balanced") else "fast"
+        return settings.auto_level if settings.auto_level in ("fast", "balanced", "precise") else "fast"
     return settings.quality.lower()
 
 

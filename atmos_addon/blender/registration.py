@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import cli_command, contact_sheet, operators, preset_ops, properties, sun_lamp, sync, ui_panel
+from . import cli_command, contact_sheet, operators, precise_tables, preset_ops, properties, sun_lamp, sync, ui_panel
 
 CLASSES = (*properties.CLASSES, *operators.CLASSES, *preset_ops.CLASSES, *contact_sheet.CLASSES, *sun_lamp.CLASSES,
            *ui_panel.CLASSES)
@@ -21,5 +21,6 @@ def register() -> None:
 def unregister() -> None:
     cli_command.unregister()
     sync.remove_handlers()
+    precise_tables.cancel_pending()
     for cls in reversed(CLASSES):
         bpy.utils.unregister_class(cls)

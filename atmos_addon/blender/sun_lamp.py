@@ -211,7 +211,8 @@ def _baked_fcurves(idblock) -> list:
     animation = idblock.animation_data
     if animation is None or animation.action is None:
         return []
-    names = sync.node_groups().parameters.PARAMETER_NAMES
+    parameters = sync.node_groups().parameters
+    names = set(parameters.PARAMETER_NAMES) - set(parameters.PRECISE_PARAMETER_NAMES)   # those keys are the tables'
     paths = {f'["{name}"]' for name in names} if isinstance(idblock, bpy.types.Scene) else set(LAMP_PATHS)
     return [c for c in sync.node_groups().parameters._fcurves(animation.action) if c.data_path in paths]
 

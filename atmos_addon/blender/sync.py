@@ -32,6 +32,7 @@ _last_counts: dict[str, tuple[int, int]] = {}
 #: A slider that moves neither the atmosphere nor the sun (distance scale, albedo, limb darkening) skips the physics.
 _last_atmosphere: dict[str, tuple] = {}
 _last_sun_values: dict[str, tuple] = {}
+_last_camera_z: dict[str, float | None] = {}
 
 
 def node_groups():
@@ -194,6 +195,20 @@ def sync_scene(scene) -> None:
         in_render.sync_domes(scene, atmosphere, metres_per_unit(scene))
     _sync_sun_lamp(scene, lamp, elevation_rad, (colour, strength, diameter), enabled=enabled)
     _last_sun_matrix[scene.name] = _matrix_key(lamp)
+    _last_camera_z[scene.name] = _camera_z(scene)
+    from . import precise_tables
+
+    if enabled and precise_tables.uses_precise(scene):
+        precise_tables.follow(scene)
+    elif node_groups().parameters.PRECISE_TILE in scene:   # left the Precise level: drop its tables
+        precise_tables.remove(scene)
+        for name in node_groups().parameters.PRECISE_PARAMETER_NAMES:
+            del scene[name]
+
+
+def _camera_z(scene) -> float | None:
+    """The scene camera's world z (the Precise tables depend on its altitude), None without a camera."""
+    return None if scene.camera is None else round(float(scene.camera.matrix_world.translation.z), 6)
 
 
 def sky_features_from_settings(settings):
@@ -239,8 +254,9 @@ def forget(scene_name: str | None = None) -> None:
         _last_counts.clear()
         _last_atmosphere.clear()
         _last_sun_values.clear()
+        _last_camera_z.clear()
     else:
-        for cache in (_last_sun_matrix, _last_counts, _last_atmosphere, _last_sun_values):
+        for cache in (_last_sun_matrix, _last_counts, _last_atmosphere, _last_sun_values, _last_camera_z):
             cache.pop(scene_name, None)
 
 
@@ -258,6 +274,11 @@ def on_depsgraph_update(scene, depsgraph) -> None:
         return
     if _matrix_key(sun_object(scene)) != _last_sun_matrix.get(scene.name):
         sync_scene(scene)
+    elif _camera_z(scene) != _last_camera_z.get(scene.name, _camera_z(scene)):   # the Precise tables follow it
+        _last_camera_z[scene.name] = _camera_z(scene)
+        from . import precise_tables
+
+        precise_tables.follow(scene)
     counts = (len(bpy.data.materials), len(scene.objects))
     if _last_counts.get(scene.name) != counts:
         _last_counts[scene.name] = counts

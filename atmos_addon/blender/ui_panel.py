@@ -237,6 +237,8 @@ class ATMOS_PT_atmosphere_aerial(_SubPanel, bpy.types.Panel):
             layout.prop(settings, "auto_tolerance")
         if settings.quality != "FAST":
             layout.prop(settings, "origin_altitude")
+        if settings.quality == "PRECISE" or (settings.quality == "AUTO" and settings.auto_level == "precise"):
+            layout.prop(settings, "multiple_scattering")
         layout.operator("atmos.refresh", icon="FILE_REFRESH")
         if not settings.enabled:
             return

@@ -165,13 +165,22 @@ def test_apply_with_a_quality_level(workdir: Path) -> None:
                    "--output", str(workdir / "auto.blend"), cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "atmos: Auto chose " in proc.stderr
+    precise = workdir / "precise.blend"
+    proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--quality", "precise",
+                   "--output", str(precise), cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert 'atmos: Precise: baked 1 table tile into the image "Atmos Precise Table"' in proc.stderr
+    import bpy
+
+    with bpy.data.libraries.load(str(precise)) as (data_from, _data_to):
+        assert "Atmos Precise Table" in list(data_from.images)
 
 
 @pytest.mark.parametrize(
     "args, fragments",
     [
-        (("render", "camera.blend", "--preset", "clear", "--quality", "precise", "--output", "x.png"),
-         ("--quality", "precise")),
+        (("render", "camera.blend", "--preset", "clear", "--quality", "exact", "--output", "x.png"),
+         ("--quality", "exact")),
         (("render", "missing.blend", "--preset", "clear", "--output", "x.png"), ("missing.blend", "does not exist")),
         (("render", "garbage.blend", "--preset", "clear", "--output", "x.png"), ("garbage.blend", "cannot read")),
         (("render", "camera.blend", "--preset", "no-such-preset", "--output", "x.png"), ("no-such-preset",)),

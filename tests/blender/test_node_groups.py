@@ -246,7 +246,7 @@ def test_features_build_only_the_terms_needed():
             hg_nodes[features.key] = sum(1 for n in tree.nodes if n.label == "Phi_HG")
             attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
             assert describe_features(features).endswith(f": {counts[features.key]} nodes")
-    assert counts == {key: count for key, count in NODE_COUNTS.items() if not key.endswith("+balanced")}
+    assert counts == {key: count for key, count in NODE_COUNTS.items() if not key.endswith(("+balanced", "+precise"))}
     assert hg_nodes == {"rayleigh": 0, "rayleigh+abs": 0, "rayleigh+mie": 1, "rayleigh+mie+abs": 1}
     assert counts["rayleigh"] < counts["rayleigh+abs"] < counts["rayleigh+mie"] < counts["rayleigh+mie+abs"]
     assert "atmos_beta_mie" not in attributes["rayleigh+abs"] and "atmos_mie_g" not in attributes["rayleigh"]
@@ -261,7 +261,18 @@ def test_features_build_only_the_terms_needed():
             counts[features.key] = node_count(tree)
             attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
             assert describe_features(features).startswith("Balanced, ")
+    for mie in (False, True):
+        for absorption in (False, True):
+            features = AerialFeatures(mie=mie, absorption=absorption, level="precise")
+            tree = ensure_aerial_perspective_group(features)
+            counts[features.key] = node_count(tree)
+            attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
     assert counts == NODE_COUNTS
+    # Precise: absorption lives in the table (no extra nodes); Mie adds the HG phase and the A_M block's taps
+    assert counts["rayleigh+abs+precise"] == counts["rayleigh+precise"] < counts["rayleigh+mie+precise"]
+    assert attributes["rayleigh+mie+abs+precise"] == {
+        "atmos_precise_tile", "atmos_precise_scale", "atmos_precise_atlas", "atmos_planet_radius",
+        "atmos_sun_direction", "atmos_metres_per_unit", "atmos_mie_g"}
     assert attributes["rayleigh+mie+abs+balanced"] == set(AERIAL_PARAMETER_NAMES)
     assert "atmos_beta_mie" not in attributes["rayleigh+abs+balanced"]
     assert "atmos_mie_g" not in attributes["rayleigh+balanced"]
@@ -423,3 +434,81 @@ def test_balanced_group_at_the_extremes_is_finite_and_matches_the_core(engine):
         relative = np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
         if metres_per_unit < 1.0e6:
             assert relative.max() < TOLERANCE[engine], f"{label}: worst relative error {relative.max():.2e}"
+
+
+# -- Precise ---------------------------------------------------------------------------------------------
+
+#: (camera location, rotation, metres per unit, origin altitude m, sun direction): a drone 2 km up looking down
+#: past a low sun, and a plateau camera looking at planes 3-200 km away with the sun behind.
+PRECISE_CASES = (
+    ((0.0, 0.0, 200.0), (math.radians(60.0), 0.0, math.radians(20.0)), 1.0, 1800.0, (0.3, 0.8, 0.2)),
+    ((0.0, 0.0, 10.0), (math.radians(95.0), 0.0, math.radians(-30.0)), 10.0, 500.0, (-0.2, -0.9, 0.35)),
+)
+
+
+def _write_precise(scene, atm: Atmosphere, sun_direction, metres_per_unit: float, origin_altitude: float, camera):
+    """Parameters and the one-tile table as the add-on writes them; returns the tile."""
+    from atmos_addon.blender import precise_tables
+    from atmos_addon.physics.precise import bake_tile
+
+    _write_balanced(scene, atm, sun_direction, metres_per_unit, origin_altitude)
+    sun = _unit(sun_direction)
+    altitude = origin_altitude + camera.matrix_world.translation.z * metres_per_unit
+    tile = bake_tile(atm, altitude, math.asin(sun[2]))
+    image = precise_tables.write_tiles([tile])
+    precise_tables._write_parameters(scene, (0, 0), altitude, tile, atm.atmosphere_height, tuple(image.size))
+    return tile
+
+
+def _expected_precise(camera, metres_per_unit: float, sun_direction, tile, atm: Atmosphere = ATMOSPHERE):
+    """``physics.precise.evaluate`` in float32 for every pixel-centre ray of the parity scene, (HEIGHT, WIDTH, 3)."""
+    from atmos_addon.physics.precise import evaluate
+
+    directions = ru.pixel_centre_directions(camera, WIDTH, HEIGHT)
+    forward = -np.array(camera.matrix_world.to_3x3().col[2], dtype=np.float64)
+    depth = np.repeat(np.array(DEPTHS_UNITS), WIDTH // 3)[np.newaxis, :]
+    distance_m = depth / (directions @ forward) * metres_per_unit
+    transmittance, light = evaluate(tile, directions, _unit(sun_direction), distance_m, atm, np.float32)
+    gain = (GAIN_NUMERATOR / depth)[..., np.newaxis]
+    top = np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2
+    return np.where(top, transmittance, light * gain)
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_precise_group_matches_physics_core(engine):
+    """The Precise graph samples the packed table exactly as ``physics.precise.evaluate`` does."""
+    worst = 0.0
+    for location, rotation, metres_per_unit, origin, sun in PRECISE_CASES:
+        scene, camera = _parity_scene(AerialFeatures(level="precise"), location, rotation)
+        ru.set_engine(scene, engine, width=WIDTH, height=HEIGHT)
+        tile = _write_precise(scene, ATMOSPHERE, sun, metres_per_unit, origin, camera)
+        image = ru.render_to_array(scene)[..., :3]
+        expected = _expected_precise(camera, metres_per_unit, sun, tile)
+        relative = np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
+        assert np.all(np.isfinite(image))
+        assert relative.max() < TOLERANCE[engine], (
+            f"{engine} camera {location}: worst relative error {relative.max():.2e} at pixel "
+            f"{np.unravel_index(relative.argmax(), relative.shape)}")
+        worst = max(worst, float(relative.max()))
+    print(f"\n{engine} Precise (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_precise_group_at_the_extremes_is_finite_and_matches_the_core(engine):
+    """Sun at -5, 0 and 0.5 deg, a camera at 50 km and above the atmosphere, 1e6 m per unit (planes 3e8 to
+    2e10 m away, clamped to the table's last column): finite, non-negative, transmittance in [0, 1], and equal to
+    the float32 sampler."""
+    scene, camera = _parity_scene(AerialFeatures(level="precise"))
+    ru.set_engine(scene, engine, width=WIDTH, height=HEIGHT)
+    for elevation, metres_per_unit, origin in ((-5.0, 1.0, 0.0), (0.0, 10.0, 0.0), (0.5, 10.0, 0.0),
+                                               (30.0, 1.0, 50_000.0), (30.0, 10.0, 150_000.0), (20.0, 1.0e6, 0.0)):
+        e = math.radians(elevation)
+        sun = (0.0, math.cos(e), math.sin(e))
+        tile = _write_precise(scene, ATMOSPHERE, sun, metres_per_unit, origin, camera)
+        image = ru.render_to_array(scene)[..., :3]
+        label = f"{engine} sun {elevation} deg, {metres_per_unit:g} m/unit, origin {origin:g} m"
+        assert np.all(np.isfinite(image)) and np.all(image >= 0.0), label
+        assert np.all(image[: HEIGHT // 2] <= 1.0 + 1e-6), label
+        expected = _expected_precise(camera, metres_per_unit, sun, tile)
+        relative = np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
+        assert relative.max() < TOLERANCE[engine], f"{label}: worst relative error {relative.max():.2e}"

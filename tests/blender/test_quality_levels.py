@@ -156,3 +156,51 @@ def test_in_render_mode_builds_fast_segments_and_says_so():
     assert "In-Render mode applies Fast" in scene.atmos.status_quality
     stamped = [t.get("atmos_features", "") for t in bpy.data.node_groups]
     assert not any(key.endswith("+balanced") for key in stamped)
+
+
+def test_precise_bakes_follows_the_sun_and_camera_and_cleans_up():
+    """Precise: one tile baked and packed, the group's image nodes point at it; moving the sun or the camera
+    re-bakes (a still scene), an unrelated slider does not; leaving Precise or disabling removes the image and
+    the parameters."""
+    from atmos_addon.physics.precise import DEFAULT_SHAPE
+    from node_groups import precise as precise_nodes
+    from node_groups.parameters import PRECISE_PARAMETER_NAMES, PRECISE_TILE
+
+    assert (precise_nodes.ALTITUDES, precise_nodes.AZIMUTHS, precise_nodes.DISTANCES) == (
+        DEFAULT_SHAPE.altitudes, DEFAULT_SHAPE.azimuths, DEFAULT_SHAPE.distances)
+    scene = _scene(camera_z=300.0)
+    scene.atmos.quality = "PRECISE"
+    report = effect.enable_effect(scene)
+    assert any("baked 1 table tile" in message for message in report.messages), report.messages
+    image = bpy.data.images[precise_nodes.IMAGE_NAME]
+    assert image.packed_file is not None and tuple(image.size) == (DEFAULT_SHAPE.width, DEFAULT_SHAPE.altitudes)
+    taps = [n for n in bpy.data.node_groups[GROUP].nodes if n.bl_idname == "ShaderNodeTexImage"]
+    assert len(taps) == 20 and all(n.image == image and n.interpolation == "Closest" for n in taps)
+    assert scene[PRECISE_TILE][2] == pytest.approx(300.0)
+    assert scene.atmos.status_built.startswith("Precise, ")
+
+    def pixels():
+        values = np.empty(len(image.pixels), dtype=np.float32)
+        image.pixels.foreach_get(values)
+        return values
+
+    before = pixels()
+    scene.atmos.distance_scale = 1.0                         # same value: nothing to bake
+    np.testing.assert_array_equal(pixels(), before)
+    bpy.data.objects["Sun"].rotation_euler = (math.radians(20.0), 0.0, 0.0)
+    bpy.context.view_layer.update()                          # depsgraph handler: re-bake at once (background)
+    after_sun = pixels()
+    assert not np.array_equal(after_sun, before)
+    scene.camera.location.z = 900.0
+    bpy.context.view_layer.update()
+    assert scene[PRECISE_TILE][2] == pytest.approx(900.0)
+    assert not np.array_equal(pixels(), after_sun)
+
+    scene.atmos.quality = "BALANCED"
+    assert precise_nodes.IMAGE_NAME not in bpy.data.images
+    assert not any(name in scene for name in PRECISE_PARAMETER_NAMES)
+    scene.atmos.quality = "PRECISE"
+    assert precise_nodes.IMAGE_NAME in bpy.data.images
+    effect.disable_effect(scene)
+    assert precise_nodes.IMAGE_NAME not in bpy.data.images
+    assert not any(name in scene for name in PRECISE_PARAMETER_NAMES)

@@ -263,6 +263,8 @@ FARM_SCRIPT = textwrap.dedent("""
     blend, out = sys.argv[1], sys.argv[2]
     bpy.ops.wm.open_mainfile(filepath=blend)
     scene = bpy.context.scene
+    if len(sys.argv) > 3:
+        scene.frame_set(int(sys.argv[3]))
     assert not any(name.startswith("atmos_addon") for name in sys.modules), "the add-on was imported"
     assert not hasattr(bpy.types.Scene, "atmos")
     settings = scene.render.image_settings
@@ -277,7 +279,7 @@ FARM_SCRIPT = textwrap.dedent("""
 """)
 
 
-@pytest.mark.parametrize("quality", ["FAST", "BALANCED"])
+@pytest.mark.parametrize("quality", ["FAST", "BALANCED", "PRECISE"])
 def test_farm_render_without_the_addon_matches(tmp_path: Path, quality: str) -> None:
     """A file saved with the effect on renders the same in a fresh process that never imports atmos_addon
     (empty HOME, no PYTHONPATH): Cycles, fixed seed, 16x16, max abs difference <= 1e-4, at each quality level
@@ -321,6 +323,66 @@ def test_farm_render_without_the_addon_matches(tmp_path: Path, quality: str) -> 
     difference = float(np.max(np.abs(farm - session)))
     print(f"farm render: max abs difference {difference:.3g}")
     assert difference <= 1e-4
+
+
+def _farm_render(tmp_path: Path, blend: Path, frame: int) -> np.ndarray:
+    """Render ``frame`` of ``blend`` in a fresh process that never imports the add-on (empty HOME)."""
+    home = tmp_path / "home"
+    home.mkdir(exist_ok=True)
+    env = {key: value for key, value in os.environ.items() if not key.startswith(("PYTHON", "BLENDER_"))}
+    env["HOME"] = str(home)
+    script = tmp_path / "farm.py"
+    script.write_text(FARM_SCRIPT)
+    out = tmp_path / f"farm{frame}"
+    result = subprocess.run([sys.executable, "-I", str(script), str(blend), str(out), str(frame)],
+                            cwd=str(tmp_path), env=env, capture_output=True, text=True, timeout=180)
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    return np.load(str(out) + ".npy")
+
+
+def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Path) -> None:
+    """Precise with a camera climbing 0 -> 3 km and a sun setting over 3 frames: one table tile per frame in
+    the packed image, the tile parameters keyed (constant), and a process without the add-on renders every frame
+    as the session did (max abs difference <= 1e-4); the frames differ from each other."""
+    from node_groups import precise as precise_nodes
+    from node_groups.parameters import PRECISE_TILE
+
+    scene = bpy.context.scene
+    scene.atmos.quality = "PRECISE"
+    render_utils.set_engine(scene, "CYCLES", width=16, height=16)
+    scene.cycles.samples = 4
+    scene.cycles.seed = 7
+    scene.frame_start, scene.frame_end = 1, 3
+    camera = camera_looking_north(scene)
+    for frame, z in ((1, 2.0), (3, 3000.0)):
+        camera.location.z = z
+        camera.keyframe_insert("location", index=2, frame=frame)
+    sun = sun_lamp(scene)
+    for frame, angle in ((1, 40.0), (3, 85.0)):
+        sun.rotation_euler = (math.radians(angle), 0.0, math.radians(30.0))
+        sun.keyframe_insert("rotation_euler", frame=frame)
+    world(scene)
+    far = mesh_object("Far", emissive_material("Far", (0.2, 0.5, 0.8)), location=(0.0, 9000.0, 0.0),
+                      half_size=6000.0)
+    far.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    scene.frame_set(1)
+    report = effect.enable_effect(scene)
+    assert any("baked 3 table tiles" in message for message in report.messages), report.messages
+    image = bpy.data.images[precise_nodes.IMAGE_NAME]
+    assert image.packed_file is not None and tuple(image.size) == (precise_nodes.DISTANCES * (
+        1 + 2 * precise_nodes.AZIMUTHS), 3 * precise_nodes.ALTITUDES)
+    session = {}
+    for frame in (1, 2, 3):
+        scene.frame_set(frame)
+        assert scene[PRECISE_TILE][1] == (frame - 1) * precise_nodes.ALTITUDES
+        session[frame] = render_utils.render_to_array(scene)
+    assert np.max(np.abs(session[1] - session[3])) > 1e-2
+    blend = tmp_path / "farm.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    for frame in (1, 3):
+        difference = float(np.max(np.abs(_farm_render(tmp_path, blend, frame) - session[frame])))
+        print(f"farm frame {frame}: max abs difference {difference:.3g}")
+        assert difference <= 1e-4, frame
 
 
 

@@ -1,0 +1,256 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The Precise level's baked tables: one tile per frame in one float image packed into the .blend.
+
+A tile (``physics.precise.bake_tile``) depends on the atmosphere, the camera's altitude and the sun's elevation.
+:func:`bake` integrates one tile when neither the camera nor the sun moves over time, else one per frame of the
+scene's range, and writes them into the "Atmos Precise Table" image: tiles stacked upward, a new column every
+:data:`TILES_PER_COLUMN` tiles (GPU textures stop at 16384 texels). The frame's tile origin, camera altitude and
+largest distance are scene parameters; with several tiles they are keyed per frame with constant interpolation,
+so the render (a farm's included) picks each frame's tile without Python. The image is packed, so the file
+carries it. A bake is skipped while its inputs are unchanged (a key stored on the image).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import bpy
+import numpy as np
+
+from ..physics.precise import DEFAULT_SHAPE, Tile, bake_tile
+
+#: Largest texture side GPUs accept (OpenGL's usual GL_MAX_TEXTURE_SIZE), px.
+MAX_TEXTURE_SIZE = 16384
+#: Tiles stacked in one column of the image.
+TILES_PER_COLUMN = MAX_TEXTURE_SIZE // DEFAULT_SHAPE.altitudes
+_KEY = "atmos_bake_key"
+_TILES = "atmos_tiles"
+
+
+def node_groups():
+    from . import sync
+
+    return sync.node_groups()
+
+
+def _camera_altitude_m(scene, metres_per_unit: float) -> float:
+    """The scene camera's altitude above sea level at the current frame, m (origin altitude + z; 0 without one)."""
+    camera = scene.camera
+    z = float(camera.matrix_world.translation.z) if camera is not None else 0.0
+    return float(scene.atmos.origin_altitude) + z * metres_per_unit
+
+
+def frame_inputs(scene) -> list[tuple[int, float, float]]:
+    """(frame, camera altitude m, sun elevation rad) per tile: the current frame only, or every frame of the range
+    when the camera or the sun moves over time (the current frame is restored)."""
+    from . import sun_lamp, sync
+
+    metres = sync.metres_per_unit(scene)
+
+    def now(frame: int) -> tuple[int, float, float]:
+        direction, _ = sync.sun_direction(scene)
+        return frame, _camera_altitude_m(scene, metres), math.asin(float(np.clip(direction[2], -1.0, 1.0)))
+
+    if not (sun_lamp.moves_over_time(scene.camera) or sun_lamp.is_sun_animated(scene)):
+        return [now(scene.frame_current)]
+    current = scene.frame_current
+    try:
+        inputs = []
+        for frame in range(scene.frame_start, scene.frame_end + 1):
+            scene.frame_set(frame)
+            inputs.append(now(frame))
+        return inputs
+    finally:
+        scene.frame_set(current)
+
+
+def _bake_key(atmosphere, albedo, multiple: bool, inputs) -> str:
+    text = repr((sorted(atmosphere.to_dict().items()), tuple(round(a, 6) for a in albedo), multiple,
+                 [(f, round(h, 3), round(e, 7)) for f, h, e in inputs]))
+    return hashlib.sha1(text.encode()).hexdigest()
+
+
+def tile_origin(index: int, shape=DEFAULT_SHAPE) -> tuple[int, int]:
+    """Texel origin (x0, y0) of tile ``index`` in the image."""
+    return (index // TILES_PER_COLUMN) * shape.width, (index % TILES_PER_COLUMN) * shape.altitudes
+
+
+def _ensure_image(width: int, height: int) -> bpy.types.Image:
+    """The table image at this size (a new float, non-colour image when missing or resized)."""
+    name = node_groups().precise.IMAGE_NAME
+    image = bpy.data.images.get(name)
+    if image is not None and tuple(image.size) != (width, height):
+        bpy.data.images.remove(image)
+        image = None
+    if image is None:
+        image = bpy.data.images.new(name, width=width, height=height, alpha=False, float_buffer=True, is_data=True)
+        image.colorspace_settings.name = "Non-Color"
+    image.use_half_precision = False   # Eevee would otherwise upload 16-bit floats
+    return image
+
+
+def write_tiles(tiles: list[Tile]) -> bpy.types.Image:
+    """Write ``tiles`` into the table image (tile i at :func:`tile_origin`), pack it and point the aerial
+    group's image nodes at it."""
+    shape = tiles[0].shape
+    columns = (len(tiles) - 1) // TILES_PER_COLUMN + 1
+    rows = min(len(tiles), TILES_PER_COLUMN)
+    width, height = columns * shape.width, rows * shape.altitudes
+    pixels = np.zeros((height, width, 4), dtype=np.float32)
+    pixels[..., 3] = 1.0
+    for index, tile in enumerate(tiles):
+        x0, y0 = tile_origin(index, shape)
+        pixels[y0:y0 + shape.altitudes, x0:x0 + shape.width, :3] = tile.pixels()
+    image = _ensure_image(width, height)
+    image.pixels.foreach_set(pixels.ravel())
+    image.update()
+    image.pack()
+    _link_image(image)
+    return image
+
+
+def _link_image(image: bpy.types.Image) -> None:
+    """Point the image nodes of the aerial group (if built) at ``image``."""
+    group = bpy.data.node_groups.get(node_groups().aerial_perspective.GROUP_NAME)
+    if group is None:
+        return
+    for node in group.nodes:
+        if node.bl_idname == "ShaderNodeTexImage" and node.image != image:
+            node.image = image
+
+
+def _write_parameters(scene, origin: tuple[int, int], camera_altitude_m: float, tile: Tile, top_m: float,
+                      size: tuple[int, int]) -> None:
+    parameters = node_groups().parameters
+    scene[parameters.PRECISE_TILE] = (float(origin[0]), float(origin[1]), max(float(camera_altitude_m), 0.0))
+    scene[parameters.PRECISE_SCALE] = (float(tile.max_distance_m), float(top_m), 0.0)
+    scene[parameters.PRECISE_ATLAS] = (float(size[0]), float(size[1]), 0.0)
+
+
+def _clear_keys(scene) -> None:
+    """Remove the per-frame keys of the Precise parameters."""
+    animation = scene.animation_data
+    if animation is None or animation.action is None:
+        return
+    parameters = node_groups().parameters
+    paths = {f'["{name}"]' for name in parameters.PRECISE_PARAMETER_NAMES}
+    for fcurve in [c for c in parameters._fcurves(animation.action) if c.data_path in paths]:
+        parameters._remove_fcurve(animation.action, fcurve)
+
+
+def bake(scene, *, force: bool = False) -> int:
+    """Bake the scene's tables if their inputs changed (or ``force``); returns the number of tiles baked (0: the
+    image was current). Writes and, with several tiles, keys the Precise parameters."""
+    from . import sync
+
+    settings = scene.atmos
+    atmosphere = sync.atmosphere_of(scene)
+    albedo = tuple(float(a) for a in settings.ground_albedo)
+    multiple = bool(settings.multiple_scattering)
+    inputs = frame_inputs(scene)
+    key = _bake_key(atmosphere, albedo, multiple, inputs)
+    image = bpy.data.images.get(node_groups().precise.IMAGE_NAME)
+    if not force and image is not None and image.get(_KEY) == key and node_groups().parameters.PRECISE_TILE in scene:
+        _link_image(image)
+        return 0
+    tiles = [bake_tile(atmosphere, altitude, elevation, multiple_scattering=multiple, ground_albedo=albedo)
+             for _, altitude, elevation in inputs]
+    image = write_tiles(tiles)
+    image[_KEY] = key
+    image[_TILES] = len(tiles)
+    size = tuple(image.size)
+    _clear_keys(scene)
+    top = atmosphere.atmosphere_height
+    names = node_groups().parameters.PRECISE_PARAMETER_NAMES
+    for index, ((frame, altitude, _), tile) in enumerate(zip(inputs, tiles)):
+        _write_parameters(scene, tile_origin(index), altitude, tile, top, size)
+        if len(tiles) > 1:
+            for name in names:
+                scene.keyframe_insert(f'["{name}"]', frame=frame)
+    if len(tiles) > 1:
+        _constant_interpolation(scene, names)
+        scene.frame_set(scene.frame_current)   # re-evaluate the keyed values at the current frame
+    scene.update_tag()
+    return len(tiles)
+
+
+def _constant_interpolation(scene, names) -> None:
+    parameters = node_groups().parameters
+    paths = {f'["{name}"]' for name in names}
+    for fcurve in parameters._fcurves(scene.animation_data.action):
+        if fcurve.data_path in paths:
+            for point in fcurve.keyframe_points:
+                point.interpolation = "CONSTANT"
+
+
+def remove(scene) -> None:
+    """Remove the Precise parameters' keys (the parameters are cleared with the others) and, when no scene
+    uses the Precise level any more, the table image."""
+    _clear_keys(scene)
+    image = bpy.data.images.get(node_groups().precise.IMAGE_NAME)
+    still_used = any(getattr(other, "atmos", None) is not None and other.atmos.enabled and other is not scene
+                     and other.get(node_groups().parameters.PRECISE_TILE) is not None for other in bpy.data.scenes)
+    if image is not None and not still_used:
+        bpy.data.images.remove(image)
+
+
+def describe() -> str:
+    """One line for reports: how many tiles the table image holds."""
+    image = bpy.data.images.get(node_groups().precise.IMAGE_NAME)
+    if image is None:
+        return "Precise: no table baked yet"
+    tiles = int(image.get(_TILES, 1))
+    return (f"Precise: baked {tiles} table tile{'s' if tiles != 1 else ''} into the image \"{image.name}\" "
+            f"({image.size[0]}x{image.size[1]}, packed)")
+
+
+def uses_precise(scene) -> bool:
+    """True when ``scene`` has the effect on with its aerial group built at the Precise level."""
+    from . import sync
+
+    settings = getattr(scene, "atmos", None)
+    return bool(settings is not None and settings.enabled and sync.features_from_settings(settings).level == "precise")
+
+
+def moves(scene) -> bool:
+    """True when the camera or the sun moves over time (one tile per frame)."""
+    from . import sun_lamp
+
+    return sun_lamp.moves_over_time(scene.camera) or sun_lamp.is_sun_animated(scene)
+
+
+def follow(scene) -> None:
+    """After a parameter, sun or camera change: re-bake a still scene's one tile (at once in the background, else
+    0.3 s after the last change, so a slider drag bakes once). An animated scene's per-frame tiles are re-baked
+    by Enable, Refresh and quality changes (:func:`bake`), not on every edit."""
+    if not uses_precise(scene) or moves(scene):
+        return
+    if bpy.app.background:
+        bake(scene)
+        return
+    _pending.add(scene.name)
+    if bpy.app.timers.is_registered(_bake_pending):
+        bpy.app.timers.unregister(_bake_pending)
+    bpy.app.timers.register(_bake_pending, first_interval=DEBOUNCE_S)
+
+
+#: Seconds after the last change before an interactive re-bake.
+DEBOUNCE_S = 0.3
+_pending: set[str] = set()
+
+
+def _bake_pending():
+    for name in sorted(_pending):
+        scene = bpy.data.scenes.get(name)
+        if scene is not None and uses_precise(scene) and not moves(scene):
+            bake(scene)
+    _pending.clear()
+    return None
+
+
+def cancel_pending() -> None:
+    """Drop queued re-bakes and their timer (unregister)."""
+    _pending.clear()
+    if bpy.app.timers.is_registered(_bake_pending):
+        bpy.app.timers.unregister(_bake_pending)

@@ -1,0 +1,146 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The Precise quality level as nodes: the frame's baked table, sampled per shading point.
+
+The numpy reference is ``atmos_addon.physics.precise`` (``bake_tile`` builds the table, ``evaluate`` samples it
+exactly as this graph does; its docstring derives the quantities). Per shading point, with s the camera
+distance (m), v the unit view direction, l the unit direction to the sun:
+
+    r_c    = R + h_c,  rise = (2 r_c v_z + s) s,  h_p = h_c + rise / (sqrt(r_c^2 + rise) + r_c)   target altitude
+    row    = (clamp(h_p / top, 0, 1))^(1/3) (N_h - 1)
+    a      = atan2(|v_x l_y - v_y l_x|, v_x l_x + v_y l_y) (N_a - 1) / pi,  a0 = min(floor(a), N_a - 2)
+    col    = min(sqrt(s / D), 1) (N_d - 1)
+    tau    = s * image(x0 + 0.5 + col, y0 + 0.5 + row)                         the extinction block
+    A_i    = lerp(image(x_i + a0 N_d + ...), image(x_i + (a0 + 1) N_d + ...), a - a0)   A_R and A_M blocks
+    F_ex   = exp(-tau),  L_in = [Phi_R(nu) A_R + Phi_HG(nu, g) A_M] tau phi1(tau),  nu = v . l
+
+Within an azimuth slice the blend is bilinear in (row, col), from the four texels around the point fetched
+unfiltered (texel centres at +0.5), the same arithmetic in both engines.
+Per-frame values are scene parameters (:mod:`.parameters`): the tile's texel origin and the camera altitude
+(``atmos_precise_tile`` = (x0, y0, h_c)), the frame's largest distance and the table's top
+(``atmos_precise_scale`` = (D, top, 0)) and the image size (``atmos_precise_atlas``). When the camera or the sun
+moves over time the add-on keys them per frame (constant interpolation), so a farm renders every frame from the
+packed image without Python.
+"""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+
+from . import parameters
+from .balanced import SMALL_OPTICAL_DEPTH, branch_large
+from .dome import cos_theta_to_sun, sun_direction
+from .graph import GraphBuilder, Socket
+
+#: Name of the image the add-on bakes the tables into (packed into the .blend).
+IMAGE_NAME = "Atmos Precise Table"
+#: Table shape the graph samples (``physics.precise.DEFAULT_SHAPE``; a test checks they agree).
+ALTITUDES, AZIMUTHS, DISTANCES = 65, 8, 32
+
+
+def table_image() -> bpy.types.Image | None:
+    """The baked table image, or None before the first bake (the graph then samples nothing: black)."""
+    return bpy.data.images.get(IMAGE_NAME)
+
+
+def _texel(g: GraphBuilder, u: Socket, v: Socket, label: str) -> Socket:
+    """The image's texel at texture coordinates (u, v) (a texel centre), unfiltered: its colour."""
+    node = g.node("ShaderNodeTexImage", label=label, interpolation="Closest", extension="EXTEND")
+    node.image = table_image()
+    g._feed(node, node.inputs["Vector"], g.combine(u, v, 0.0, label=f"uv ({label})"))
+    return node.outputs["Color"]
+
+
+def _lerp(g: GraphBuilder, low: Socket, high: Socket, fraction: Socket, label: str) -> Socket:
+    """low + fraction (high - low), per component (``fraction`` a scalar)."""
+    return g.multiply_add(g.combine(fraction, fraction, fraction), g.sub(high, low), low, label=label)
+
+
+def phi1_exact(g: GraphBuilder, x: Socket, exp_minus_x: Socket) -> Socket:
+    """phi1(x) = (1 - exp(-x)) / x per component, the series 1 - x/2 + x^2/6 below 1e-3 (x >= 0), picked exactly:
+    m quotient + (1 - m) series with m 0 or 1 and the series taken at min(x, 1e-3). (Balanced's blend
+    series + m (quotient - series) cancels once x^2/6 dwarfs the quotient: optical depths of thousands, which the
+    Precise table's far columns reach.)"""
+    small = g.min(x, (SMALL_OPTICAL_DEPTH,) * 3)
+    series = g.multiply_add(small, g.multiply_add(small, (1.0 / 6.0,) * 3, (-0.5,) * 3), (1.0, 1.0, 1.0),
+                            label="1 - x/2 + x^2/6")
+    quotient = g.div(g.sub((1.0, 1.0, 1.0), exp_minus_x), g.max(x, (SMALL_OPTICAL_DEPTH,) * 3),
+                     label="(1 - e^-x) / x")
+    large = branch_large(g, x, SMALL_OPTICAL_DEPTH)
+    return g.multiply_add(large, quotient, g.mul(g.sub((1.0, 1.0, 1.0), large), series), label="phi1(tau)")
+
+
+class _Bilinear:
+    """Bilinear samples of the image at (x + col, row) for integer x offsets: the four texels around it fetched
+    unfiltered and blended here. (A filtered texture lookup would do the same in Cycles, but Eevee filters with
+    mipmaps chosen from screen-space derivatives, which the slice jumps of the atlas coordinates make huge.)
+    The fractions are shared by every block: their offsets are whole texels."""
+
+    def __init__(self, g: GraphBuilder, x0: Socket, y0: Socket, column: Socket, row: Socket, width: Socket,
+                 height: Socket) -> None:
+        self.g = g
+        column_floor = g._math("FLOOR", column, label="floor(col)")
+        row_floor = g._math("FLOOR", row, label="floor(row)")
+        self.f_column = g.sub(column, column_floor, label="col fraction")
+        self.f_row = g.sub(row, row_floor, label="row fraction")
+        self.x = g.add(g.add(x0, 0.5), column_floor, label="x0 + floor(col) + 0.5")
+        self.width = width
+        v_low = g.div(g.add(g.add(y0, 0.5), row_floor), height, label="v (row)")
+        self.v = (v_low, g.add(v_low, g.div(1.0, height), label="v (row + 1)"))
+        self.step_u = g.div(1.0, width, label="1 / W")
+
+    def sample(self, offset: Socket | float, label: str) -> Socket:
+        g = self.g
+        u_low = g.div(g.add(self.x, offset), self.width, label=f"u ({label})")
+        u_high = g.add(u_low, self.step_u)
+        rows = [_lerp(g, _texel(g, u_low, v, label), _texel(g, u_high, v, label), self.f_column, f"{label} row")
+                for v in self.v]
+        return _lerp(g, rows[0], rows[1], self.f_row, label)
+
+
+def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket) -> tuple[Socket, Socket]:
+    """(F_ex, L_in) sampled from the frame's table (module docstring)."""
+    vx, vy, vz = g.separate(view, label="v")
+    sun = sun_direction(g)
+    sx, sy, _ = g.separate(sun, label="l")
+    x0, y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile (x0, y0, h_c)")
+    d_max, top, _ = g.separate(g.attribute(parameters.PRECISE_SCALE, output="Vector"), label="scale (D, top)")
+    width, height, _ = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"), label="atlas (W, H)")
+    radius = g.attribute(parameters.PLANET_RADIUS, output="Fac")
+
+    r_c = g.add(radius, h_c, label="r_c")
+    rise = g.mul(g.multiply_add(g.mul(r_c, 2.0), vz, s), s, label="rise = (2 r_c v_z + s) s")
+    r_p = g.sqrt(g.max(g.multiply_add(r_c, r_c, rise), 0.0), label="r_p")
+    h_p = g.add(h_c, g.div(rise, g.add(r_p, r_c)), label="h_p")
+    fraction = g.min(g.max(g.div(h_p, top), 0.0), 1.0, label="h_p / top")
+    row = g.mul(g.pow(fraction, 1.0 / 3.0), float(ALTITUDES - 1), label="row")
+
+    cross = g.abs(g.sub(g.mul(vx, sy), g.mul(vy, sx)), label="|v x l|_z")
+    dot = g.multiply_add(vx, sx, g.mul(vy, sy), label="(v . l)_xy")
+    azimuth = g.mul(g._math("ARCTAN2", cross, dot), (AZIMUTHS - 1) / math.pi, label="a")
+    a0 = g.min(g._math("FLOOR", azimuth), float(AZIMUTHS - 2), label="a0")
+    fa = g.sub(azimuth, a0, label="a - a0")
+    column = g.mul(g.min(g.sqrt(g.div(s, d_max)), 1.0), float(DISTANCES - 1), label="col")
+    bilinear = _Bilinear(g, x0, y0, column, row, width, height)
+    slice_offset = g.mul(a0, float(DISTANCES), label="a0 N_d")
+
+    extinction = bilinear.sample(0.0, "tau / s")
+    tau = g.scale(extinction, s, label="tau")
+    f_ex = g.per_channel(g.exp, g.neg(tau), label="F_ex")
+    one_minus_t = g.mul(tau, phi1_exact(g, tau, f_ex), label="1 - exp(-tau)")
+
+    def block(offset: int, name: str) -> Socket:
+        low = bilinear.sample(g.add(slice_offset, float(offset)), f"{name} (a0)")
+        high = bilinear.sample(g.add(slice_offset, float(offset + DISTANCES)), f"{name} (a0 + 1)")
+        return _lerp(g, low, high, fa, name)
+
+    nu = cos_theta_to_sun(g, view, sun)
+    from .aerial_perspective import phase_henyey_greenstein, phase_rayleigh
+
+    light = g.scale(block(DISTANCES, "A_R"), phase_rayleigh(g, nu), label="Phi_R A_R")
+    if features.mie:
+        mie = g.mul(block(DISTANCES * (1 + AZIMUTHS), "A_M"),
+                    phase_henyey_greenstein(g, nu, g.attribute(parameters.MIE_G)), label="Phi_HG A_M")
+        light = g.add(light, mie, label="Phi_R A_R + Phi_HG A_M")
+    return f_ex, g.mul(light, one_minus_t, label="L_in")

@@ -1,0 +1,139 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The Precise level: its tables against direct quadrature, the shader's sampling, stability at the extremes."""
+
+import math
+
+import numpy as np
+import pytest
+
+from atmos_addon.physics import Atmosphere
+from atmos_addon.physics.optical_depth import optical_depth_to_space
+from atmos_addon.physics.precise import (DEFAULT_SHAPE, MultipleScatteringTable, SunTransmittanceTable, TableShape,
+                                         atmosphere_tables, bake_tile, evaluate, max_distance, target_altitude)
+from atmos_addon.physics.reference import single_scattering
+from atmos_addon.presets import load
+
+EARTH = Atmosphere()
+MARS = load("mars").atmosphere
+
+
+def _rays(n, seed=3):
+    rng = np.random.default_rng(seed)
+    elevation = np.radians(rng.uniform(-10.0, 30.0, n))
+    azimuth = rng.uniform(-np.pi, np.pi, n)
+    views = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], -1)
+    return views, 10.0 ** rng.uniform(1.0, 5.0, n)
+
+
+@pytest.mark.parametrize("atm", [EARTH, MARS], ids=["earth", "mars"])
+def test_sun_transmittance_table_matches_the_chapman_quadrature(atm):
+    table = SunTransmittanceTable(atm)
+    rng = np.random.default_rng(1)
+    altitude = rng.uniform(0.0, 60_000.0, 5000)
+    radius = atm.planet_radius + altitude
+    horizon = -np.sqrt(1.0 - (atm.planet_radius / radius) ** 2)
+    mu = horizon + (1.0 - horizon) * rng.uniform(0.0, 1.0, 5000) ** 3   # crowded near the horizon
+    tau = optical_depth_to_space(altitude, np.arccos(mu), atm)
+    error = np.abs(table(radius, mu) - np.exp(-tau))
+    assert error.max() < 5e-4                                           # absolute transmittance
+    assert np.all(table(radius, horizon - 1e-3) == 0.0)                # the planet's shadow
+
+
+def test_multiple_scattering_table_is_finite_positive_and_zero_deep_in_the_shadow():
+    sun, ms = atmosphere_tables(EARTH)
+    assert isinstance(ms, MultipleScatteringTable) and isinstance(sun, SunTransmittanceTable)
+    assert np.all(np.isfinite(ms.psi)) and np.all(ms.psi >= 0.0)
+    assert np.all(ms(0.0, -1.0) == 0.0) and np.all(ms(0.0, 1.0) > 0.0)
+    assert np.all(ms(0.0, 1.0) < 1.0 / (4.0 * np.pi))                  # far below the unscattered sun's share
+    darker = MultipleScatteringTable(EARTH, sun, ground_albedo=(0.0, 0.0, 0.0))
+    assert np.all(darker(0.0, 0.8) < ms(0.0, 0.8))                     # the ground's reflection is in it
+
+
+def _stays_above_ground(altitude, views, distances, atm):
+    """Rays whose straight path from the camera stays above the spherical ground."""
+    r_c = atm.planet_radius + altitude
+    sin_e = views[:, 2]
+    nearest = np.clip(-r_c * sin_e, 0.0, distances)
+    lowest = np.sqrt(r_c ** 2 + 2 * r_c * nearest * sin_e + nearest ** 2)
+    end = np.sqrt(r_c ** 2 + 2 * r_c * distances * sin_e + distances ** 2)
+    return np.minimum(lowest, end) >= atm.planet_radius
+
+
+@pytest.mark.parametrize("case", [(2.0, 40.0), (2000.0, 10.0), (10_000.0, 1.0), (60_000.0, 30.0)])
+def test_tile_matches_brute_force_single_scattering(case):
+    """Random rays from the camera, not on the table's samples: F_ex and L_in against ``reference``."""
+    altitude, sun_deg = case
+    tile = bake_tile(EARTH, altitude, math.radians(sun_deg), multiple_scattering=False)
+    sun = np.array([math.cos(math.radians(sun_deg)), 0.0, math.sin(math.radians(sun_deg))])
+    views, distances = _rays(40)
+    above = _stays_above_ground(altitude, views, distances, EARTH)   # the table's ground is transparent
+    views, distances = views[above][:12], distances[above][:12]
+    f_ex, l_in = evaluate(tile, views, sun, distances, EARTH, np.float64)
+    for i in range(len(distances)):
+        f_ref, l_ref = single_scattering(altitude, views[i], distances[i], sun, EARTH, n_steps=801, n_sun_steps=129)
+        np.testing.assert_allclose(f_ex[i], f_ref, rtol=1e-2, atol=2e-3)
+        np.testing.assert_allclose(l_in[i], l_ref, rtol=2e-2, atol=2e-3 * np.abs(l_ref).max() + 1e-6)
+
+
+def test_target_altitude_is_exact_in_float32():
+    r_c = EARTH.planet_radius + 2.0
+    for c, d in ((0.0, 30_000.0), (-0.7, 2_000.0), (0.3, 1e5), (-1.0, 2.0)):
+        exact = math.sqrt(r_c * r_c + 2 * r_c * c * d + d * d) - EARTH.planet_radius
+        assert abs(float(target_altitude(r_c, c, d, EARTH.planet_radius, np.float32)) - exact) < 0.05 + 1e-6 * exact
+
+
+@pytest.mark.parametrize("atm", [EARTH, MARS], ids=["earth", "mars"])
+def test_stability_sweep(atm):
+    """Sun -90..90 deg, camera 0..150 km, distances 0..1e7 m, coefficients 0..100x, g +-0.999: finite,
+    non-negative, transmittance in [0, 1], in float32 as the shader evaluates it."""
+    shape = TableShape(17, 4, 12)
+    rng = np.random.default_rng(5)
+    views, _ = _rays(200, seed=9)
+    views = np.concatenate([views, [[0, 0, 1], [0, 0, -1], [1, 0, 0]]])
+    distances = np.concatenate([[0.0, 1e-3, 1e7], 10.0 ** rng.uniform(-2.0, 7.0, 200)])
+    for scale, g in ((0.0, 0.0), (1.0, 0.999), (100.0, -0.999)):
+        a = atm.replace(rayleigh_scattering=atm.rayleigh_scattering * scale, mie_scattering=atm.mie_scattering * scale,
+                        mie_absorption=atm.mie_absorption * scale, mie_g=g)
+        for altitude in (0.0, 50_000.0, 150_000.0):
+            for sun_deg in (-90.0, -5.0, 0.0, 0.5, 45.0, 90.0):
+                tile = bake_tile(a, altitude, math.radians(sun_deg), shape=shape, multiple_scattering=scale == 1.0)
+                for quantity in (tile.mean_extinction, tile.a_rayleigh, tile.a_mie):
+                    assert np.all(np.isfinite(quantity)) and np.all(quantity >= 0.0)
+                sun = np.array([math.cos(math.radians(sun_deg)), 0.0, math.sin(math.radians(sun_deg))])
+                f_ex, l_in = evaluate(tile, views, sun, distances, a, np.float32)
+                label = f"scale {scale}, camera {altitude} m, sun {sun_deg} deg"
+                assert np.all(np.isfinite(f_ex)) and np.all(np.isfinite(l_in)), label
+                assert np.all((f_ex >= 0.0) & (f_ex <= 1.0)) and np.all(l_in >= 0.0), label
+                if scale == 0.0:
+                    assert np.all(f_ex == 1.0) and np.all(l_in == 0.0), label
+
+
+def test_continuous_in_distance_and_across_the_horizon():
+    tile = bake_tile(EARTH, 2.0, math.radians(20.0))
+    sun = np.array([math.cos(math.radians(20.0)), 0.0, math.sin(math.radians(20.0))])
+    distances = np.concatenate([[0.0], np.geomspace(1e-3, 2e5, 600)])
+    view = np.array([0.0, 1.0, 0.0])
+    f_ex, l_in = evaluate(tile, np.broadcast_to(view, (len(distances), 3)), sun, distances, EARTH, np.float32)
+    assert f_ex[0].tolist() == [1.0, 1.0, 1.0] and l_in[0].tolist() == [0.0, 0.0, 0.0]
+    # monotone (transmittance falls, in-scattering grows) up to the table's interpolation, 0.1 % of the value
+    assert np.all(np.diff(f_ex, axis=0) <= 1e-6) and np.all(np.diff(l_in, axis=0) >= -1e-3 * l_in[1:])
+    elevation = np.radians(np.linspace(-1.0, 1.0, 2001))
+    views = np.stack([np.zeros_like(elevation), np.cos(elevation), np.sin(elevation)], -1)
+    f_ex, l_in = evaluate(tile, views, sun, np.full(len(elevation), 30_000.0), EARTH, np.float32)
+    for value in (f_ex[:, 2].astype(float), l_in[:, 2].astype(float)):
+        steps = np.abs(np.diff(value))
+        assert steps.max() <= 5.0 * np.median(steps) + 1e-6
+
+
+def test_shape_and_layout():
+    assert DEFAULT_SHAPE.width == DEFAULT_SHAPE.distances * (1 + 2 * DEFAULT_SHAPE.azimuths)
+    tile = bake_tile(EARTH, 2.0, math.radians(45.0), shape=TableShape(9, 3, 5))
+    pixels = tile.pixels()
+    assert pixels.shape == (9, 5 * 7, 3)
+    np.testing.assert_array_equal(pixels[:, :5], tile.mean_extinction)
+    np.testing.assert_array_equal(pixels[:, 5 + 5:5 + 10], tile.a_rayleigh[:, 1])
+    np.testing.assert_array_equal(pixels[:, 5 + 15 + 10:], tile.a_mie[:, 2])
+    assert max_distance(0.0, EARTH) == pytest.approx(math.sqrt((EARTH.planet_radius + 1e5) ** 2
+                                                               - EARTH.planet_radius ** 2))
+    with pytest.raises(ValueError):
+        TableShape(1, 4, 4)
