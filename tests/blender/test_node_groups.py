@@ -375,14 +375,24 @@ def _expected_balanced(camera, metres_per_unit: float, origin_altitude: float, s
     """``physics.balanced`` in float32 for every pixel-centre ray of the parity scene, (HEIGHT, WIDTH, 3)."""
     from atmos_addon.physics.balanced import extinction_balanced, inscattering_balanced
 
-    directions = ru.pixel_centre_directions(camera, WIDTH, HEIGHT)
-    forward = -np.array(camera.matrix_world.to_3x3().col[2], dtype=np.float64)
-    depth = np.repeat(np.array(DEPTHS_UNITS), WIDTH // 3)[np.newaxis, :]
-    distance_m = depth / (directions @ forward) * metres_per_unit
+    directions, distance_m, depth = _parity_rays(camera, metres_per_unit)
     h0 = origin_altitude + camera.matrix_world.translation.z * metres_per_unit
     mu = directions @ _unit(sun_direction)
     transmittance = extinction_balanced(h0, directions, distance_m, atm, np.float32)
     light = inscattering_balanced(h0, directions, distance_m, mu, atm, e_sun, np.float32, sun_optical_depths=taus)
+    return _parity_image(transmittance, light, depth)
+
+
+def _parity_rays(camera, metres_per_unit: float):
+    """(unit directions, distances m, plane depths in units) of the parity scene's pixel-centre rays."""
+    directions = ru.pixel_centre_directions(camera, WIDTH, HEIGHT)
+    forward = -np.array(camera.matrix_world.to_3x3().col[2], dtype=np.float64)
+    depth = np.repeat(np.array(DEPTHS_UNITS), WIDTH // 3)[np.newaxis, :]
+    return directions, depth / (directions @ forward) * metres_per_unit, depth
+
+
+def _parity_image(transmittance, light, depth) -> np.ndarray:
+    """What the parity scene shows: transmittance in the top half, in-scattering times 1000 / depth below."""
     gain = (GAIN_NUMERATOR / depth)[..., np.newaxis]
     top = np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2
     return np.where(top, transmittance, light * gain)
@@ -464,14 +474,9 @@ def _expected_precise(camera, metres_per_unit: float, sun_direction, tile, atm: 
     """``physics.precise.evaluate`` in float32 for every pixel-centre ray of the parity scene, (HEIGHT, WIDTH, 3)."""
     from atmos_addon.physics.precise import evaluate
 
-    directions = ru.pixel_centre_directions(camera, WIDTH, HEIGHT)
-    forward = -np.array(camera.matrix_world.to_3x3().col[2], dtype=np.float64)
-    depth = np.repeat(np.array(DEPTHS_UNITS), WIDTH // 3)[np.newaxis, :]
-    distance_m = depth / (directions @ forward) * metres_per_unit
+    directions, distance_m, depth = _parity_rays(camera, metres_per_unit)
     transmittance, light = evaluate(tile, directions, _unit(sun_direction), distance_m, atm, np.float32)
-    gain = (GAIN_NUMERATOR / depth)[..., np.newaxis]
-    top = np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2
-    return np.where(top, transmittance, light * gain)
+    return _parity_image(transmittance, light, depth)
 
 
 @pytest.mark.parametrize("engine", ru.ENGINES)
