@@ -438,7 +438,8 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
     )
     ground_albedo: FloatVectorProperty(
         name="Ground Albedo",
-        description="Colour (reflectance) of the distant ground the sky shows below the horizon",
+        description="Colour (reflectance) of the distant ground the sky shows below the horizon; Precise quality's "
+                    "multiple scattering also takes the light it reflects",
         subtype="COLOR",
         size=3,
         default=(0.18, 0.2, 0.15),

@@ -167,17 +167,24 @@ class SunTransmittanceTable:
         return np.where(lit[..., None], np.exp(-tau), 0.0)
 
 
-def _bilinear(table: np.ndarray, i: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """Bilinear interpolation of a 2-D (or 2-D x channels) ``table`` at fractional indices (i, k), clamped."""
-    i = np.clip(i, 0.0, table.shape[0] - 1.0)
-    k = np.clip(k, 0.0, table.shape[1] - 1.0)
+def _bilinear(table: np.ndarray, i: np.ndarray, k: np.ndarray, slice_index=None) -> np.ndarray:
+    """Bilinear interpolation at fractional indices (i, k), edge samples clamped (an image texture's filter), of
+    a table (rows, columns[, channels]) or, with per-point ``slice_index``, of its slices
+    (rows, slices, columns, channels)."""
+    columns = table.shape[1] if slice_index is None else table.shape[2]
+    i = np.clip(i, 0, table.shape[0] - 1)
+    k = np.clip(k, 0, columns - 1)
     i0 = np.minimum(np.floor(i).astype(int), table.shape[0] - 2)
-    k0 = np.minimum(np.floor(k).astype(int), table.shape[1] - 2)
-    fi, fk = i - i0, k - k0
-    if table.ndim == 3:
+    k0 = np.minimum(np.floor(k).astype(int), columns - 2)
+    fi, fk = (i - i0).astype(table.dtype), (k - k0).astype(table.dtype)
+    if table.ndim == 3 or slice_index is not None:
         fi, fk = fi[..., None], fk[..., None]
-    return ((1 - fi) * ((1 - fk) * table[i0, k0] + fk * table[i0, k0 + 1])
-            + fi * ((1 - fk) * table[i0 + 1, k0] + fk * table[i0 + 1, k0 + 1]))
+
+    def at(r, c):
+        return table[r, c] if slice_index is None else table[r, slice_index, c]
+
+    return ((1 - fi) * ((1 - fk) * at(i0, k0) + fk * at(i0, k0 + 1))
+            + fi * ((1 - fk) * at(i0 + 1, k0) + fk * at(i0 + 1, k0 + 1)))
 
 
 def _fibonacci_sphere(n: int) -> np.ndarray:
@@ -378,22 +385,6 @@ def table_coordinates(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, dista
     return row.astype(dt), azimuth.astype(dt), column.astype(dt)
 
 
-def _bilinear_slice(q: np.ndarray, row: np.ndarray, column: np.ndarray, slice_index=None) -> np.ndarray:
-    """Bilinear sample at fractional (row, column) of q (rows, columns, 3), or of the per-point azimuth slice
-    ``slice_index`` of q (rows, slices, columns, 3); edge texels clamped: the image texture's filter."""
-    row = np.clip(row, 0, q.shape[0] - 1)
-    column = np.clip(column, 0, q.shape[-2] - 1)
-    r0 = np.minimum(np.floor(row).astype(int), q.shape[0] - 2)
-    c0 = np.minimum(np.floor(column).astype(int), q.shape[-2] - 2)
-    fr, fc = (row - r0)[..., None].astype(q.dtype), (column - c0)[..., None].astype(q.dtype)
-
-    def at(r, c):
-        return q[r, c] if slice_index is None else q[r, slice_index, c]
-
-    return ((1 - fr) * ((1 - fc) * at(r0, c0) + fc * at(r0, c0 + 1))
-            + fr * ((1 - fc) * at(r0 + 1, c0) + fc * at(r0 + 1, c0 + 1)))
-
-
 def sample(quantity: np.ndarray, row: np.ndarray, azimuth: np.ndarray, column: np.ndarray,
            dtype: DTypeLike = np.float32) -> np.ndarray:
     """A quantity (altitudes, azimuths, distances, 3) at fractional texel coordinates: bilinear in (row, column)
@@ -402,8 +393,8 @@ def sample(quantity: np.ndarray, row: np.ndarray, azimuth: np.ndarray, column: n
     q = np.asarray(quantity, dtype=dt)
     a0 = np.clip(np.floor(azimuth), 0, q.shape[1] - 2).astype(int)
     fa = (azimuth - a0).astype(dt)[..., None]
-    low = _bilinear_slice(q, row, column, a0)
-    high = _bilinear_slice(q, row, column, a0 + 1)
+    low = _bilinear(q, row, column, a0)
+    high = _bilinear(q, row, column, a0 + 1)
     return low + fa * (high - low)
 
 
@@ -416,7 +407,7 @@ def evaluate(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, distance_m: Ar
     """
     dt = np.dtype(dtype).type
     row, azimuth, column = table_coordinates(tile, view_dir, sun_dir, distance_m, atm, dtype)
-    extinction_per_m = _bilinear_slice(np.asarray(tile.mean_extinction, dtype=dt), row, column)
+    extinction_per_m = _bilinear(np.asarray(tile.mean_extinction, dtype=dt), row, column)
     a_r = sample(tile.a_rayleigh, row, azimuth, column, dtype)
     a_m = sample(tile.a_mie, row, azimuth, column, dtype)
     nu = np.einsum("...i,i->...", np.asarray(view_dir, dtype=dt), np.asarray(sun_dir, dtype=dt))
