@@ -12,7 +12,7 @@ direction v, with the unit direction to the sun l and mu = v . l:
     L_in    = E_sun [L(a, a) + exp(-tau(a, a)) L(t_R, t_M)]     "Inscattering"
     Phi_R   = 3 / (16 pi) (1 + mu^2)
     Phi_HG  = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^(3/2))       (normalised; g > 0 scatters forward)
-    phi1(x) = (1 - exp(-x)) / x, or 1 - x/2 + x^2/6 for x < 1e-3 (no 0/0 at zero depth)
+    phi1(x) = (1 - exp(-x)) / x
 
 which is eq. 19 when s is nearer than both domes (t_R = t_M = 0). Beyond the shorter dome (the haze's, normally)
 only the longer species' slab is added behind the mixed one: the layered dome of ``physics.sky`` (one of t_R,
@@ -25,9 +25,15 @@ Incoming). Mie absorption adds to extinction only. The other parameters are read
 properties (see :mod:`.parameters`), so the tree depends only on which terms are present
 (:class:`AerialFeatures`), and is rebuilt only when those or :data:`NODE_GROUP_VERSION` change.
 
-Every step follows ``atmos_addon.physics`` (its float32 evaluation is what the tests compare against).
-Vector Math does the per-channel products and sums (exact per component); exp, sqrt, sign and the
-branch of phi1 have no Vector Math form in Blender 4.2, so they run channel by channel on Math nodes.
+How the nodes evaluate it (:func:`scattering_terms`): phi1 cancels against the slab's length, so L(a, a) is
+(beta_R Phi_R + beta_M Phi_HG) / beta_ex (1 - exp(-tau)); every exp(-beta x) is b^(k x), a per-channel power
+of the parameter-only base b = exp(-beta / k) (one Gamma node), and Phi_HG's base^(-3/2) is a Gamma node too.
+Cycles resolves the parameters (View Layer attributes) to constants and folds every node that reads only
+them, so what runs per shading point is about thirty Vector Math and Gamma nodes: no per-channel exp, no
+division by tau, no series branch.
+Every quantity is the one ``atmos_addon.physics`` computes (its float32 evaluation is what the tests compare
+against, within 2e-3 in Cycles). Vector Math does the per-channel products and sums (exact per component);
+exp and sign of the parameters run channel by channel on Math nodes, folded to constants by Cycles.
 """
 
 from __future__ import annotations
@@ -52,9 +58,7 @@ SEGMENT_GROUP_NAME = "Atmos Aerial Perspective (Ray Segment)"
 #: Where s comes from: the camera's view distance (the AOV path) or Light Path > Ray Length (per ray segment).
 DISTANCE_SOURCES = ("VIEW", "RAY")
 #: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
-NODE_GROUP_VERSION = 3  # 2: lengths clamped to the virtual sky dome; 3: the layered dome
-#: Optical depth below which phi1 uses its series (the physics core's ``SMALL_OPTICAL_DEPTH``).
-SMALL_OPTICAL_DEPTH = 1.0e-3
+NODE_GROUP_VERSION = 4  # 2: lengths clamped to the virtual sky dome; 3: the layered dome; 4: powers, no phi1
 #: Floor of the Henyey-Greenstein denominator base (the physics core's ``HG_DENOMINATOR_FLOOR``).
 HG_DENOMINATOR_FLOOR = 1.0e-12
 
@@ -120,33 +124,33 @@ def mie_extinction_coefficient(g: GraphBuilder, features: AerialFeatures, beta_m
     return beta_mie if features.mie else None
 
 
-def optical_depth(g: GraphBuilder, beta_rayleigh: Socket, beta_mie_ex: Socket | None, s_rayleigh: Socket,
-                  s_mie: Socket) -> Socket:
-    """tau = beta_R s_R + beta_M,ex s_M per channel, dimensionless."""
-    tau = g.scale(beta_rayleigh, s_rayleigh, label="beta_R s_R")
-    if beta_mie_ex is None:
-        return tau
-    return g.multiply_add(beta_mie_ex, s_mie, tau, label="tau")
+def exponent_unit(g: GraphBuilder, beta_rayleigh: Socket, beta_mie_ex: Socket | None) -> Socket:
+    """k = max over the channels of beta_R + beta_M,ex, 1/m: optical depths are written as k x (parameters only)."""
+    total = beta_rayleigh if beta_mie_ex is None else g.add(beta_rayleigh, beta_mie_ex, label="beta_ex")
+    red, green, blue = g.separate(total)
+    return g.max(g.max(red, green), blue, label="k = max beta_ex")
 
 
-def transmittance(g: GraphBuilder, tau: Socket) -> Socket:
-    """F_ex = exp(-tau) per channel."""
-    return g.per_channel(g.exp, g.neg(tau), label="F_ex")
+def transmittance_base(g: GraphBuilder, beta: Socket, k: Socket, *, label: str) -> Socket:
+    """b = exp(-beta / k) per channel, in [1/e, 1]: the transmittance over the length 1/k (parameters only).
 
-
-def one_minus_exp_over_x(g: GraphBuilder, x: Socket, exp_minus_x: Socket) -> Socket:
-    """phi1(x) = (1 - exp(-x)) / x per channel, by its series 1 - x/2 + x^2/6 where x < 1e-3.
-
-    ``exp_minus_x`` is exp(-x) (the transmittance, already computed); the quotient uses max(x, 1e-3)
-    so the unused branch never divides by zero, and the branch is picked exactly (see ``select``).
+    With every coefficient 0, k = 0 and Blender's divide gives 0: b = 1, no extinction.
     """
-    series = g.add(g.sub(1.0, g.mul(x, 0.5)), g.mul(g.mul(x, x), 1.0 / 6.0), label="1 - x/2 + x^2/6")
-    quotient = g.div(g.sub(1.0, exp_minus_x), g.max(x, SMALL_OPTICAL_DEPTH), label="(1 - e^-x) / x")
+    return g.per_channel(g.exp, g.neg(g.div(beta, k)), label=label)
 
-    def pick(x_c: Socket, series_c: Socket, quotient_c: Socket) -> Socket:
-        return g.select(g.less_than(x_c, SMALL_OPTICAL_DEPTH), series_c, quotient_c)
 
-    return g.per_channel(pick, x, series, quotient, label="phi1")
+def transmittance(g: GraphBuilder, base: Socket, length: Socket, k: Socket, *, label: str) -> Socket:
+    """exp(-beta x) = b^(k x) per channel for a length x in m: one Gamma node (:meth:`~.graph.GraphBuilder.power_per_channel`).
+
+    k x is the largest channel's optical depth; b >= 1/e keeps every channel's base far from float32's
+    underflow, and b^0 = 1 at zero length.
+    """
+    return g.power_per_channel(base, g.mul(length, k, label=f"k x ({label})"), label=label)
+
+
+def one_minus(g: GraphBuilder, colour: Socket, *, label: str = "") -> Socket:
+    """1 - colour per channel."""
+    return g.sub((1.0, 1.0, 1.0), colour, label=label)
 
 
 def phase_rayleigh(g: GraphBuilder, mu: Socket) -> Socket:
@@ -158,18 +162,19 @@ def phase_henyey_greenstein(g: GraphBuilder, mu: Socket, anisotropy: Socket) -> 
     """Phi_HG(mu, g) = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^(3/2)) per channel, 1/sr (eq. 18, normalised).
 
     The base is written (1 - |g|)^2 + 2 |g| (1 - sign(g) mu), two non-negative terms, so it does not
-    cancel near the peak as |g| -> 1, and is floored at 1e-12.
+    cancel near the peak as |g| -> 1, and is floored at 1e-12; base^(-3/2) is one Gamma node. Only the
+    three nodes that involve mu run per shading point: the rest reads parameters alone (Cycles folds it).
     """
     abs_g = g.abs(anisotropy, label="|g|")
-    sign_g = g.per_channel(g.sign, anisotropy, label="sign(g)")
-    one_minus_sign_mu = g.multiply_add(sign_g, g.neg(mu), 1.0, label="1 - sign(g) mu")
-    one_minus_abs_g = g.sub(1.0, abs_g)
-    base = g.multiply_add(g.mul(abs_g, 2.0), one_minus_sign_mu, g.mul(one_minus_abs_g, one_minus_abs_g),
+    minus_sign_g = g.neg(g.per_channel(g.sign, anisotropy), label="-sign(g)")
+    one_minus_sign_mu = g.multiply_add(minus_sign_g, mu, (1.0, 1.0, 1.0), label="1 - sign(g) mu")
+    one_minus_abs_g = g.sub((1.0, 1.0, 1.0), abs_g)
+    base = g.multiply_add(g.scale(abs_g, 2.0), one_minus_sign_mu, g.mul(one_minus_abs_g, one_minus_abs_g),
                           label="1 + g^2 - 2 g mu")
-    base = g.max(base, HG_DENOMINATOR_FLOOR)
-    base_to_three_halves = g.mul(base, g.per_channel(g.sqrt, base), label="base^1.5")
-    one_minus_g2 = g.mul(g.sub(1.0, anisotropy), g.add(1.0, anisotropy), label="1 - g^2")
-    return g.div(one_minus_g2, g.mul(base_to_three_halves, 4.0 * math.pi), label="Phi_HG")
+    base = g.max(base, (HG_DENOMINATOR_FLOOR,) * 3)
+    one_minus_g2 = g.mul(g.sub((1.0, 1.0, 1.0), anisotropy), g.add((1.0, 1.0, 1.0), anisotropy), label="1 - g^2")
+    return g.mul(g.power_per_channel(base, -1.5, label="base^-1.5"), g.scale(one_minus_g2, 1.0 / (4.0 * math.pi)),
+                 label="Phi_HG")
 
 
 def scattering_per_length(g: GraphBuilder, features: AerialFeatures, mu: Socket, beta_rayleigh: Socket,
@@ -182,45 +187,57 @@ def scattering_per_length(g: GraphBuilder, features: AerialFeatures, mu: Socket,
     return rayleigh, g.mul(beta_mie, phase_henyey_greenstein(g, mu, anisotropy), label="beta_M Phi_HG")
 
 
-def slab(g: GraphBuilder, sigma_rayleigh: Socket, sigma_mie: Socket | None, beta_rayleigh: Socket,
-         beta_mie_ex: Socket | None, length_rayleigh: Socket, length_mie: Socket | None, name: str
-         ) -> tuple[Socket, Socket]:
-    """(T, L / E_sun) of one slab with a length per species: exp(-tau) and (sigma_R x_R + sigma_M x_M) phi1(tau).
-
-    tau = beta_R x_R + beta_M,ex x_M; exact for species in fixed proportion and for one species alone
-    (``physics.sky.inscattering_two_species`` without E_sun).
-    """
-    tau = optical_depth(g, beta_rayleigh, beta_mie_ex, length_rayleigh, length_mie)
-    f_ex = transmittance(g, tau)
-    scattered = g.scale(sigma_rayleigh, length_rayleigh, label=f"sigma_R x_R ({name})")
-    if sigma_mie is not None:
-        scattered = g.multiply_add(sigma_mie, length_mie, scattered, label=f"sigma_R x_R + sigma_M x_M ({name})")
-    return f_ex, g.mul(scattered, one_minus_exp_over_x(g, tau, f_ex), label=f"L / E_sun ({name})")
-
-
 def scattering_terms(g: GraphBuilder, features: AerialFeatures, s_rayleigh: Socket, s_mie: Socket | None,
                      mu: Socket) -> tuple[Socket, Socket]:
     """(F_ex, L_in) of the layered dome for per-species lengths b_R, b_M: shared by the aerial and sky groups.
 
-    a = min(b_R, b_M) holds both species, the tail t_i = b_i - a (one of them 0) the longer one alone:
-    L_in = E_sun [L(a, a) + T(a, a) L(t_R, t_M)], F_ex = T(a, a) T(t_R, t_M) (``physics.sky.inscattering_layered``).
-    With neither Mie scattering nor absorption (``s_mie`` None) there is one species and one slab of length b_R.
+    a = min(b_R, b_M) holds both species, the tail t_i = b_i - a (one of them 0) the longer one alone
+    (``physics.sky.inscattering_layered``). A slab's L = (sigma_R x_R + sigma_M x_M) phi1(tau) becomes, for
+    the shared segment (x_R = x_M = a, tau = beta_ex a), (beta_R Phi_R + beta_M Phi_HG) / beta_ex (1 - T(a)),
+    and for a tail of one species beta_i Phi_i / beta_i,ex (1 - T_i(t_i)); so
+
+        L_in = E_sun [(1 - T(a)) (r_R Phi_R + r_M Phi_HG) + T(a) (Phi_R (1 - T_R(t_R)) + w_M Phi_HG (1 - T_M(t_M)))]
+        F_ex = T(a) T_R(t_R) T_M(t_M),   T(a) = T_R(a) T_M(a)
+
+    with the parameter-only ratios r_R = beta_R / beta_ex, r_M = beta_M / beta_ex, w_M = beta_M / beta_M,ex
+    (0 where a denominator is 0, and so is its numerator) and every T a power b^(k x) (:func:`transmittance`).
+    No quotient by tau and no series branch at small depths: the shading point runs about thirty Vector Math
+    and Gamma nodes, the per-channel ratios and bases fold to constants in Cycles. 1 - T rounds to 6e-8 in
+    float32, so for tau < 1e-3 the in-scattering keeps an absolute error of 6e-8 E_sun Phi (a surface a few
+    metres away, whose in-scattering is that small). Without Mie scattering or absorption (``s_mie`` None)
+    there is one species: L_in = E_sun Phi_R (1 - T_R(b_R)), F_ex = T_R(b_R).
     """
     beta_rayleigh = g.attribute(parameters.BETA_RAYLEIGH)
     beta_mie = g.attribute(parameters.BETA_MIE) if features.mie else None
-    beta_mie_ex = mie_extinction_coefficient(g, features, beta_mie)
-    sigma_rayleigh, sigma_mie = scattering_per_length(g, features, mu, beta_rayleigh, beta_mie)
+    beta_mie_ex = mie_extinction_coefficient(g, features, beta_mie) if s_mie is not None else None
     sun_irradiance = g.attribute(parameters.SUN_IRRADIANCE)
+    phase_r = phase_rayleigh(g, mu)
+    k = exponent_unit(g, beta_rayleigh, beta_mie_ex)
+    base_rayleigh = transmittance_base(g, beta_rayleigh, k, label="b_R")
     if s_mie is None:
-        f_ex, light = slab(g, sigma_rayleigh, None, beta_rayleigh, None, s_rayleigh, None, "b_R")
+        f_ex = transmittance(g, base_rayleigh, s_rayleigh, k, label="F_ex")
+        light = g.scale(one_minus(g, f_ex, label="1 - F_ex"), phase_r, label="L / E_sun")
         return f_ex, g.mul(light, sun_irradiance, label="L_in")
+    base_mie = transmittance_base(g, beta_mie_ex, k, label="b_M")
     shared = g.min(s_rayleigh, s_mie, label="a = min(b_R, b_M)")
     tail_rayleigh = g.sub(s_rayleigh, shared, label="t_R = b_R - a")
     tail_mie = g.sub(s_mie, shared, label="t_M = b_M - a")
-    f_near, l_near = slab(g, sigma_rayleigh, sigma_mie, beta_rayleigh, beta_mie_ex, shared, shared, "a")
-    f_far, l_far = slab(g, sigma_rayleigh, sigma_mie, beta_rayleigh, beta_mie_ex, tail_rayleigh, tail_mie, "tail")
-    light = g.multiply_add(f_near, l_far, l_near, label="L(a) + T(a) L(tail)")
-    return g.mul(f_near, f_far, label="F_ex"), g.mul(light, sun_irradiance, label="L_in")
+    t_shared = transmittance(g, g.mul(base_rayleigh, base_mie, label="b_R b_M"), shared, k, label="T(a)")
+    t_rayleigh = transmittance(g, base_rayleigh, tail_rayleigh, k, label="T_R(t_R)")
+    t_mie = transmittance(g, base_mie, tail_mie, k, label="T_M(t_M)")
+    beta_ex = g.add(beta_rayleigh, beta_mie_ex, label="beta_ex")
+    shared_phase = g.scale(g.div(beta_rayleigh, beta_ex, label="r_R"), phase_r, label="r_R Phi_R")
+    tail = g.scale(one_minus(g, t_rayleigh, label="1 - T_R"), phase_r, label="Phi_R (1 - T_R)")
+    if features.mie:
+        phase_m = phase_henyey_greenstein(g, mu, g.attribute(parameters.MIE_G))
+        shared_phase = g.multiply_add(g.div(beta_mie, beta_ex, label="r_M"), phase_m, shared_phase,
+                                      label="r_R Phi_R + r_M Phi_HG")
+        albedo_phase = g.mul(g.div(beta_mie, beta_mie_ex, label="w_M"), phase_m, label="w_M Phi_HG")
+        tail = g.multiply_add(albedo_phase, one_minus(g, t_mie, label="1 - T_M"), tail, label="tail L / E_sun")
+    shared_light = g.mul(one_minus(g, t_shared, label="1 - T(a)"), shared_phase, label="shared L / E_sun")
+    light = g.multiply_add(t_shared, tail, shared_light, label="L(a) + T(a) L(tail)")
+    f_ex = g.mul(t_shared, g.mul(t_rayleigh, t_mie, label="T_R T_M"), label="F_ex")
+    return f_ex, g.mul(light, sun_irradiance, label="L_in")
 
 
 # -- the group ---------------------------------------------------------------------------------------
@@ -313,7 +330,7 @@ def describe_features(features: AerialFeatures) -> str:
 
 
 #: Nodes in the group per feature key for this :data:`NODE_GROUP_VERSION` (group output included).
-NODE_COUNTS = {"rayleigh": 73, "rayleigh+abs": 115, "rayleigh+mie": 143, "rayleigh+mie+abs": 145,
-               "rayleigh+balanced": 295, "rayleigh+abs+balanced": 300, "rayleigh+mie+balanced": 330,
-               "rayleigh+mie+abs+balanced": 332, "rayleigh+precise": 153, "rayleigh+abs+precise": 153,
-               "rayleigh+mie+precise": 225, "rayleigh+mie+abs+precise": 225}
+NODE_COUNTS = {"rayleigh": 47, "rayleigh+abs": 73, "rayleigh+mie": 99, "rayleigh+mie+abs": 101,
+               "rayleigh+balanced": 295, "rayleigh+abs+balanced": 300, "rayleigh+mie+balanced": 325,
+               "rayleigh+mie+abs+balanced": 327, "rayleigh+precise": 153, "rayleigh+abs+precise": 153,
+               "rayleigh+mie+precise": 220, "rayleigh+mie+abs+precise": 220}

@@ -67,6 +67,5 @@ def dome_distances(g: GraphBuilder, view_z: Socket) -> tuple[Socket, Socket]:
 
 
 def _sqrt_xy(g: GraphBuilder, vector: Socket, *, label: str) -> Socket:
-    """(sqrt(x), sqrt(y), 0) of a vector with x, y >= 0 (the z component is unused)."""
-    x, y, _ = g.separate(vector)
-    return g.combine(g.sqrt(x), g.sqrt(y), 0.0, label=label)
+    """(sqrt(x), sqrt(y), z^0.5) of a vector with x, y >= 0, one Gamma node (the z component is unused)."""
+    return g.power_per_channel(vector, 0.5, label=label)

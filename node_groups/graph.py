@@ -155,6 +155,18 @@ class GraphBuilder:
         """a^b (scalar, a >= 0)."""
         return self._math("POWER", a, b, label=label)
 
+    def power_per_channel(self, colour: Operand, exponent: Operand, *, label: str = "") -> Socket:
+        """colour^exponent per channel with one Gamma node (channels <= 0 pass unchanged; exponent 0 gives 1).
+
+        The only per-channel power in Blender 4.2 (Vector Math has POWER from 5.0 on): with a colour base b and
+        a scalar x it gives b^x = exp(x ln b) in every channel at the cost of one node, where exp would need a
+        Separate, three Math nodes and a Combine.
+        """
+        node = self.node("ShaderNodeGamma", label=label)
+        self._feed(node, node.inputs["Color"], colour)
+        self._feed(node, node.inputs["Gamma"], exponent)
+        return node.outputs["Color"]
+
     def less_than(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
         """1.0 if a < b else 0.0 (scalar)."""
         return self._math("LESS_THAN", a, b, label=label)

@@ -39,7 +39,7 @@ from .graph import GraphBuilder, Socket
 SURFACE_GROUP_NAME = "Atmos In-Render Surface"
 SKY_GROUP_NAME = "Atmos In-Render Sky"
 #: Bump when a tree these builders make changes; stale trees are rebuilt in place.
-IN_RENDER_GROUP_VERSION = 2
+IN_RENDER_GROUP_VERSION = 3  # 3: the dome's square roots by one Gamma node
 #: The compensation exp(tau) is capped here: exp(60) = 1.1e26 keeps a bright sky (1e5 W/(m^2 sr), the sun's
 #: disk) times the factor below float32's 3.4e38, and exp(-60) = 8.8e-27 above its smallest normal 1.2e-38.
 #: Where the real depth is larger (the horizon in thick haze) the in-render sky is darker than the sky.

@@ -40,7 +40,7 @@ from .graph import GraphBuilder, Socket
 #: Name of the world node group in ``bpy.data.node_groups``.
 SKY_GROUP_NAME = "Atmos Sky"
 #: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
-SKY_GROUP_VERSION = 2  # 2: the layered dome
+SKY_GROUP_VERSION = 3  # 2: the layered dome; 3: powers, no phi1 (the aerial group's scattering_terms)
 OUTPUT_RADIANCE = "Radiance"
 GROUND_MODES = ("ALBEDO", "BLACK")
 _VERSION_KEY = "atmos_version"
@@ -173,6 +173,6 @@ def ensure_sky_group(features: SkyFeatures = SkyFeatures()) -> bpy.types.ShaderN
 
 
 #: Nodes in the sky group per feature key for this :data:`SKY_GROUP_VERSION` (group output included).
-SKY_NODE_COUNTS = {"rayleigh": 101, "rayleigh+ground": 112, "rayleigh+abs": 142, "rayleigh+abs+ground": 153,
-                   "rayleigh+mie": 170, "rayleigh+mie+ground": 181, "rayleigh+mie+abs": 172,
-                   "rayleigh+mie+abs+ground": 183}
+SKY_NODE_COUNTS = {"rayleigh": 75, "rayleigh+ground": 86, "rayleigh+abs": 100, "rayleigh+abs+ground": 111,
+                   "rayleigh+mie": 126, "rayleigh+mie+ground": 137, "rayleigh+mie+abs": 128,
+                   "rayleigh+mie+abs+ground": 139}

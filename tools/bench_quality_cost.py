@@ -14,6 +14,10 @@ untimed: Cycles loads its kernels, Eevee compiles the configuration's shaders (r
 render of each configuration). Switching the level changes the tree and Eevee compiles again (its cache did
 not always serve: 47 s instead of 14 s was seen), so in Eevee every timed render follows an untimed one of the
 same configuration.
+With ``--decompose`` two more configurations split Fast's cost: "fast-sky-only" (Fast enabled, then the
+compositing and the view layer's AOVs switched off, so Cycles drops the aerial nodes and only the Atmos sky
+remains) and "fast-aerial-only" (Fast enabled, then the world's output relinked to the world's own
+Background, so only the aerial group and its compositing remain).
 The time is the wall time of ``bpy.ops.render.render`` (no file written). The table gives medians, the
 ratio to "off", every single time, and the node count of the aerial-perspective group. Not a test: nothing fails.
 """
@@ -37,6 +41,7 @@ from tools.bench import cpu_model  # noqa: E402  (one definition for the bench t
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
+from atmos_addon.blender.materials import TAG  # noqa: E402  (the tag on nodes the add-on made)
 from sample_scenes import valley  # noqa: E402
 
 CONFIGS = ("off", "fast", "balanced", "precise")
@@ -68,12 +73,28 @@ def build(args: argparse.Namespace, engine: str):
     return scene
 
 
+#: The configurations ``--decompose`` adds (see the module docstring).
+DECOMPOSED = ("fast-sky-only", "fast-aerial-only")
+
+
 def configure(scene, config: str, preset: str) -> int:
     """Put ``scene`` into one configuration (not timed); the aerial group's node count (0 when off)."""
+    api.disable(scene)
     if config == "off":
-        api.disable(scene)
         return 0
-    api.enable(scene, preset=preset, render_mode="COMPOSITOR", quality=config.upper())
+    level = config.split("-")[0]
+    api.enable(scene, preset=preset, render_mode="COMPOSITOR", quality=level.upper())
+    if config == "fast-sky-only":
+        scene.render.use_compositing = False
+        for view_layer in scene.view_layers:
+            for aov in list(view_layer.aovs):
+                view_layer.aovs.remove(aov)
+        return 0
+    if config == "fast-aerial-only":
+        tree = scene.world.node_tree
+        output = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.is_active_output)
+        plain = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBackground" and TAG not in n.keys())
+        tree.links.new(plain.outputs["Background"], output.inputs["Surface"])
     return len(bpy.data.node_groups["Atmos Aerial Perspective"].nodes)
 
 
@@ -85,14 +106,15 @@ def timed_render(scene) -> float:
 
 def bench_engine(engine: str, args: argparse.Namespace) -> list[str]:
     scene = build(args, engine)
+    configs = CONFIGS + (DECOMPOSED if args.decompose else ())
     nodes, first = {}, {}
-    for config in CONFIGS:
+    for config in configs:
         nodes[config] = configure(scene, config, args.preset)
         first[config] = timed_render(scene)
         print(f"{engine} {config}: first (untimed) render {first[config]:.2f} s", flush=True)
-    times: dict[str, list[float]] = {config: [] for config in CONFIGS}
+    times: dict[str, list[float]] = {config: [] for config in configs}
     for repeat in range(args.repeats):
-        order = CONFIGS[repeat % len(CONFIGS):] + CONFIGS[:repeat % len(CONFIGS)]
+        order = configs[repeat % len(configs):] + configs[:repeat % len(configs)]
         for config in order:
             configure(scene, config, args.preset)
             if engine == "eevee":
@@ -102,7 +124,7 @@ def bench_engine(engine: str, args: argparse.Namespace) -> list[str]:
     api.disable(scene)
     base = statistics.median(times["off"])
     rows = []
-    for config in CONFIGS:
+    for config in configs:
         median = statistics.median(times[config])
         rows.append(f"| {engine} | {config} | {nodes[config]} | {median:.2f} s | {median / base:.2f} | "
                     f"{first[config]:.2f} s | " + ", ".join(f"{t:.2f}" for t in times[config]) + " s |")
@@ -117,6 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--threads", type=int, default=2, help="render threads")
     parser.add_argument("--preset", default="clear")
+    parser.add_argument("--decompose", action="store_true", help="also time Fast's sky alone and aerial alone")
     args = parser.parse_args(argv)
     atmos_addon.register()
     load_before = " / ".join(f"{v:.1f}" for v in os.getloadavg())
