@@ -45,7 +45,7 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 if str(REPO_ROOT) not in sys.path:
     sys.path.insert(0, str(REPO_ROOT))
 
-from atmos_addon.physics import Atmosphere, reference, sun_irradiance_ground  # noqa: E402
+from atmos_addon.physics import Atmosphere, precise, reference, sun_irradiance_ground  # noqa: E402
 from atmos_addon.physics.sky import dome_distance_approx, sky_radiance  # noqa: E402
 from atmos_addon.physics.sun import LUMINANCE_WEIGHTS  # noqa: E402
 
@@ -116,6 +116,20 @@ def measure_reference() -> dict[str, dict]:
             length = -atm.planet_radius * mu + math.sqrt((atm.planet_radius * mu) ** 2 + top ** 2
                                                           - atm.planet_radius ** 2)
             rgb[name] = reference.single_scattering(0.0, view, length, sun, atm, n_steps=4001, n_sun_steps=257)[1]
+        results[str(sun_elevation)] = {"rgb": {k: v.tolist() for k, v in rgb.items()}, "metrics": metrics(rgb)}
+    return results
+
+
+def measure_precise(multiple_scattering: bool) -> dict[str, dict]:
+    """The Precise level's integrand along whole sky rays (``physics.precise.sky_radiance``): single scattering
+    with the sun's transmittance from its table, plus Hillaire 2020's multiple scattering when asked (default
+    ground albedo). Lit from above the atmosphere like the brute force (no ground-level E_sun, no ozone)."""
+    atm = Atmosphere()
+    results = {}
+    for sun_elevation in SUN_ELEVATIONS_DEG:
+        sun = unit_vector(sun_elevation, 0.0)
+        rgb = {name: precise.sky_radiance(unit_vector(*direction), sun, atm, multiple_scattering=multiple_scattering)
+               for name, direction in view_directions(0.0).items()}
         results[str(sun_elevation)] = {"rgb": {k: v.tolist() for k, v in rgb.items()}, "metrics": metrics(rgb)}
     return results
 
@@ -232,10 +246,14 @@ METRIC_COLUMNS = (("zenith_b_over_r", "zenith B/R"), ("zenith_g_over_r", "zenith
                   ("toward_over_away", "Y toward / Y away"))
 
 
-def markdown_tables(ours: dict, ours_approx: dict, brute_force: dict, blender_runs: list[dict], command: str) -> str:
+def markdown_tables(ours: dict, ours_approx: dict, brute_force: dict, blender_runs: list[dict], command: str,
+                    precise_rows: tuple[dict, dict] | None = None) -> str:
     """The generated part of docs/sky_comparison.md: one table per metric, a row per model."""
     rows = [("Atmos (dome, accurate)", ours), ("Atmos (dome, approx.)", ours_approx),
             ("brute-force single scattering, same atmosphere", brute_force)]
+    if precise_rows is not None:
+        rows += [("Precise integrand, single scattering", precise_rows[0]),
+                 ("Precise integrand + multiple scattering", precise_rows[1])]
     for run in blender_runs:
         for model, data in run["models"].items():
             rows.append((f"Blender {run['blender']} {model}", data["elevations"]))
@@ -301,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
     command = f"{_relative(sys.executable)} tools/compare_sky_texture.py " + " ".join(
         [f"--also {p}" for p in args.also] + ([f"--output {args.output}"] if args.output else []))
     generated = markdown_tables(measure_atmos("accurate"), measure_atmos("approx"), measure_reference(), runs,
-                                command.strip())
+                                command.strip(), (measure_precise(False), measure_precise(True)))
     for run in runs:
         for model, data in run["models"].items():
             print(f"Blender {run['blender']} {model}: sun azimuth {data['sun_azimuth_deg']:g} deg, "

@@ -366,6 +366,59 @@ def bake_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: floa
                 np.ascontiguousarray(np.broadcast_to(a_m * e_top, full)))
 
 
+def sky_radiance(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, *, camera_altitude_m: float = 0.0,
+                 multiple_scattering: bool = True, ground_albedo=DEFAULT_GROUND_ALBEDO,
+                 n_samples: int = 513) -> np.ndarray:
+    """Sky radiance in W/(m^2 sr) per channel, (..., 3), along unit view directions ``view_dir`` (..., 3), z up.
+
+    The Precise level's integrand along whole rays from a camera at ``camera_altitude_m`` (m, clamped at 0) to
+    the atmosphere's top, or to the ground below the horizon (no ground reflection, no sun disk):
+
+        L = E_top integral T_view(t) [(beta_R n_R Phi_R(nu) + beta_M n_M Phi_HG(nu, g)) T_sun + sigma_s Psi_ms] dt
+
+    with nu = view . sun, T_sun from :class:`SunTransmittanceTable` (the planet's shadow included) and, with
+    ``multiple_scattering``, Hillaire 2020's isotropic term Psi_ms of :class:`MultipleScatteringTable`
+    (``ground_albedo``). Simpson's rule in w = sqrt(t / length) on ``n_samples`` (odd) samples, as the table
+    cells of :func:`bake_tile`. What the comparison with Blender's own sky models uses
+    (``tools/compare_sky_texture.py``): with ``multiple_scattering=False`` it is the brute-force single scattering
+    of :mod:`.reference` with the sun's optical depth from a table instead of a march.
+    """
+    if n_samples < 3 or n_samples % 2 == 0:
+        raise ValueError(f"n_samples must be odd and >= 3; got {n_samples}")
+    given = np.asarray(view_dir, dtype=np.float64)
+    views = given.reshape(-1, 3) / np.linalg.norm(given.reshape(-1, 3), axis=-1, keepdims=True)
+    sun = np.asarray(sun_dir, dtype=np.float64)
+    sun = sun / np.linalg.norm(sun)
+    sun_table, ms_table = atmosphere_tables(atm, tuple(float(a) for a in ground_albedo))
+    r_ground = atm.planet_radius
+    r_c = r_ground + max(float(camera_altitude_m), 0.0)
+    c = views[..., 2]
+    to_top = -r_c * c + np.sqrt(np.maximum(r_c * r_c * (c * c - 1.0) + (r_ground + atm.atmosphere_height) ** 2, 0.0))
+    disc_ground = r_c * r_c * (c * c - 1.0) + r_ground * r_ground
+    hits = (c < 0.0) & (disc_ground >= 0.0)
+    length = np.where(hits, -r_c * c - np.sqrt(np.maximum(disc_ground, 0.0)), to_top)[..., None]   # (..., 1)
+    w = np.linspace(0.0, 1.0, n_samples)
+    t = length * w * w                                                                  # (..., S)
+    radius = np.sqrt(np.maximum(r_c * r_c + 2.0 * r_c * t * c[..., None] + t * t, 0.0))
+    h = np.maximum(radius - r_ground, 0.0)
+    n_r, n_m = np.exp(-h / atm.rayleigh_scale_height)[..., None], np.exp(-h / atm.mie_scale_height)[..., None]
+    dt_dw = (2.0 * length * w)[..., None]                                               # (..., S, 1)
+    f = (atm.rayleigh_scattering * n_r + atm.mie_extinction * n_m) * dt_dw
+    dw = w[1] - w[0]
+    tau_to = np.concatenate([np.zeros_like(f[..., :1, :]),
+                             np.cumsum(0.5 * (f[..., 1:, :] + f[..., :-1, :]) * dw, axis=-2)], axis=-2)
+    nu = np.clip(views @ sun, -1.0, 1.0)[..., None]                                     # (..., 1)
+    mu_s = (r_c * sun[2] + t * nu) / np.maximum(radius, 1.0)                            # sun zenith cosine
+    sun_t = sun_table(radius, mu_s)                                                     # (..., S, 3)
+    phase_r, phase_m = phase_rayleigh(nu)[..., None], phase_hg(nu, atm.mie_g)      # (N, 1, 1), (N, 1, 3)
+    source = (atm.rayleigh_scattering * n_r * phase_r + atm.mie_scattering * n_m * phase_m) * sun_t
+    if multiple_scattering:
+        source = source + (atm.rayleigh_scattering * n_r + atm.mie_scattering * n_m) * ms_table(h, mu_s)
+    weights = _simpson_weights(n_samples)[:, None] * dt_dw
+    radiance = atm.sun_irradiance_top * np.sum(weights * np.exp(-tau_to) * source, axis=-2)
+    return radiance.reshape(given.shape[:-1] + (3,))
+
+
 def table_coordinates(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, distance_m: ArrayLike, atm: Atmosphere,
                       dtype: DTypeLike = np.float32):
     """(row, azimuth index, distance column) in texels, as the shader computes them from the unit view direction,

@@ -9,7 +9,8 @@ import pytest
 from atmos_addon.physics import Atmosphere
 from atmos_addon.physics.optical_depth import optical_depth_to_space
 from atmos_addon.physics.precise import (DEFAULT_SHAPE, MultipleScatteringTable, SunTransmittanceTable, TableShape,
-                                         atmosphere_tables, bake_tile, evaluate, max_distance, target_altitude)
+                                         atmosphere_tables, bake_tile, evaluate, max_distance, sky_radiance,
+                                         target_altitude)
 from atmos_addon.physics.reference import single_scattering
 from atmos_addon.presets import load
 
@@ -137,3 +138,25 @@ def test_shape_and_layout():
                                                                - EARTH.planet_radius ** 2))
     with pytest.raises(ValueError):
         TableShape(1, 4, 4)
+
+
+def test_sky_radiance_single_scattering_matches_the_brute_force_and_multiple_scattering_adds_light():
+    """precise.sky_radiance without its multiple-scattering term is the reference's single scattering along whole
+    sky rays (the sun's transmittance from the table instead of a march); the Hillaire term only adds light."""
+    atm = Atmosphere()
+    top = atm.planet_radius + atm.atmosphere_height
+    for sun_elevation in (60.0, 5.0, 1.0):
+        e = math.radians(sun_elevation)
+        sun = np.array([0.0, math.cos(e), math.sin(e)])
+        views = np.array([[0.0, 0.0, 1.0], [0.0, math.cos(0.035), math.sin(0.035)],
+                          [0.0, -math.cos(0.035), math.sin(0.035)]])
+        single = sky_radiance(views, sun, atm, multiple_scattering=False)
+        multiple = sky_radiance(views, sun, atm)
+        assert single.shape == multiple.shape == (3, 3)
+        for view, ours in zip(views, single):
+            length = -atm.planet_radius * view[2] + math.sqrt((atm.planet_radius * view[2]) ** 2 + top ** 2
+                                                              - atm.planet_radius ** 2)
+            expected = single_scattering(0.0, view, length, sun, atm, n_steps=2001, n_sun_steps=129)[1]
+            np.testing.assert_allclose(ours, expected, rtol=2e-3)
+        assert np.all(multiple > single)
+        assert sky_radiance(views[0], sun, atm).shape == (3,)
