@@ -135,6 +135,17 @@ def _expected(camera, metres_per_unit: float, sun_direction, atm: Atmosphere = A
     return np.where(top, transmittance, light * gain)
 
 
+def _relative_error(image: np.ndarray, expected: np.ndarray, engine: str, case: str) -> float:
+    """The worst relative error of a render against the core (floored at RELATIVE_FLOOR), asserted finite and
+    under the engine's tolerance; ``case`` names the render in the failure message."""
+    relative = np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
+    assert np.all(np.isfinite(image))
+    assert relative.max() < TOLERANCE[engine], (
+        f"{engine} {case}: worst relative error {relative.max():.2e} at pixel "
+        f"{np.unravel_index(relative.argmax(), relative.shape)}")
+    return float(relative.max())
+
+
 @pytest.mark.parametrize("engine", ru.ENGINES)
 def test_parity_with_physics_core(engine):
     scene, camera = _parity_scene()
@@ -148,12 +159,8 @@ def test_parity_with_physics_core(engine):
         _write(scene, ATMOSPHERE, sun, metres_per_unit)
         image = ru.render_to_array(scene)[..., :3]
         expected = _expected(camera, metres_per_unit, sun)
-        relative = np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
-        assert np.all(np.isfinite(image))
-        assert relative.max() < TOLERANCE[engine], (
-            f"{engine} m/unit {metres_per_unit} sun {sun.round(3).tolist()}: worst relative error "
-            f"{relative.max():.2e} at pixel {np.unravel_index(relative.argmax(), relative.shape)}")
-        worst = max(worst, float(relative.max()))
+        worst = max(worst, _relative_error(image, expected, engine,
+                                           f"m/unit {metres_per_unit} sun {sun.round(3).tolist()}"))
     PARITY_ERRORS[engine] = worst
     print(f"\n{engine} (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
 
@@ -410,14 +417,9 @@ def test_balanced_group_matches_physics_core(engine):
         expected = _expected_balanced(camera, metres_per_unit, origin, sun, taus, e_sun)
         fast = _expected(camera, metres_per_unit, sun) * np.where(  # Fast with the same E_sun
             np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2, 1.0, e_sun / np.array(SUN_IRRADIANCE))
-        relative = np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
-        assert np.all(np.isfinite(image))
-        assert relative.max() < TOLERANCE[engine], (
-            f"{engine} camera {location}: worst relative error {relative.max():.2e} at pixel "
-            f"{np.unravel_index(relative.argmax(), relative.shape)}")
+        worst = max(worst, _relative_error(image, expected, engine, f"camera {location}"))
         # The case is one where the levels differ: the test would fail on the Fast graph.
         assert (np.abs(fast - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)).max() > 0.1
-        worst = max(worst, float(relative.max()))
     print(f"\n{engine} Balanced (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
 
 
@@ -489,12 +491,7 @@ def test_precise_group_matches_physics_core(engine):
         tile = _write_precise(scene, ATMOSPHERE, sun, metres_per_unit, origin, camera)
         image = ru.render_to_array(scene)[..., :3]
         expected = _expected_precise(camera, metres_per_unit, sun, tile)
-        relative = np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
-        assert np.all(np.isfinite(image))
-        assert relative.max() < TOLERANCE[engine], (
-            f"{engine} camera {location}: worst relative error {relative.max():.2e} at pixel "
-            f"{np.unravel_index(relative.argmax(), relative.shape)}")
-        worst = max(worst, float(relative.max()))
+        worst = max(worst, _relative_error(image, expected, engine, f"camera {location}"))
     print(f"\n{engine} Precise (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
 
 
