@@ -5,7 +5,8 @@
 nothing here imports ``atmos_addon``. Modules: :mod:`.graph` (a builder that writes arithmetic as
 nodes), :mod:`.parameters` (the property names and their writer), :mod:`.aerial_perspective` (the
 "Atmos Aerial Perspective" group, Hoffman & Preetham 2002 eq. 19), :mod:`.dome` (the virtual sky dome both
-groups share), :mod:`.sky` (the "Atmos Sky" world group).
+groups share), :mod:`.sky` (the "Atmos Sky" world group), :mod:`.sky_lighting` (the same sky from a table, for
+the rays that light the scene).
 """
 
 from .aerial_perspective import (GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING, OUTPUT_TRANSMITTANCE,
@@ -17,6 +18,7 @@ from .parameters import (AERIAL_PARAMETER_NAMES, PARAMETER_NAMES, clear_shader_p
                          keyframe_shader_parameters, read_shader_parameters, write_shader_parameters)
 from .sky import (OUTPUT_RADIANCE, SKY_GROUP_NAME, SKY_GROUP_VERSION, SKY_NODE_COUNTS, SkyFeatures, build_sky,
                   ensure_sky_group)
+from . import sky_lighting  # noqa: F401  (node_groups.sky_lighting: the world's table sky for non-camera rays)
 
 __all__ = [
     "AERIAL_PARAMETER_NAMES",

@@ -18,6 +18,9 @@ With ``--decompose`` two more configurations split Fast's cost: "fast-sky-only" 
 compositing and the view layer's AOVs switched off, so Cycles drops the aerial nodes and only the Atmos sky
 remains) and "fast-aerial-only" (Fast enabled, then the world's output relinked to the world's own
 Background, so only the aerial group and its compositing remain).
+"off-sky-texture" is the effect off with Blender's own Sky Texture (multiple scattering in 5.0, Nishita in 4.x,
+at the valley's sun) feeding the valley world's Background: what an artist would render without Atmos, whose sky
+replaces the world; the table gives the ratio to it as well as to the plain world's "off".
 The time is the wall time of ``bpy.ops.render.render`` (no file written). The table gives medians, the
 ratio to "off", every single time, and the node count of the aerial-perspective group. Not a test: nothing fails.
 """
@@ -25,6 +28,7 @@ ratio to "off", every single time, and the node count of the aerial-perspective 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import platform
 import statistics
@@ -75,12 +79,34 @@ def build(args: argparse.Namespace, engine: str):
 
 #: The configurations ``--decompose`` adds (see the module docstring).
 DECOMPOSED = ("fast-sky-only", "fast-aerial-only")
+#: The effect off with Blender's own Sky Texture as the world: what an artist renders without Atmos.
+SKY_TEXTURE = "off-sky-texture"
+
+
+def use_sky_texture(scene, enable: bool) -> None:
+    """Feed the valley world's Background from a Blender Sky Texture at the valley's sun (or unlink it again)."""
+    tree = scene.world.node_tree
+    plain = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBackground" and TAG not in n.keys())
+    texture = tree.nodes.get("Bench Sky Texture")
+    if not enable:
+        if texture is not None:
+            tree.nodes.remove(texture)
+        return
+    if texture is None:
+        texture = tree.nodes.new("ShaderNodeTexSky")
+        texture.name = "Bench Sky Texture"
+        types = {item.identifier for item in texture.bl_rna.properties["sky_type"].enum_items}
+        texture.sky_type = "MULTIPLE_SCATTERING" if "MULTIPLE_SCATTERING" in types else "NISHITA"
+        texture.sun_elevation = math.radians(valley.SUN_ELEVATION_DEG)
+        texture.sun_rotation = math.radians(90.0 - valley.SUN_AZIMUTH_DEG)
+    tree.links.new(texture.outputs["Color"], plain.inputs["Color"])
 
 
 def configure(scene, config: str, preset: str) -> int:
     """Put ``scene`` into one configuration (not timed); the aerial group's node count (0 when off)."""
     api.disable(scene)
-    if config == "off":
+    use_sky_texture(scene, config == SKY_TEXTURE)
+    if config.startswith("off"):
         return 0
     level = config.split("-")[0]
     api.enable(scene, preset=preset, render_mode="COMPOSITOR", quality=level.upper())
@@ -92,9 +118,9 @@ def configure(scene, config: str, preset: str) -> int:
         return 0
     if config == "fast-aerial-only":
         tree = scene.world.node_tree
-        output = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.is_active_output)
         plain = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBackground" and TAG not in n.keys())
-        tree.links.new(plain.outputs["Background"], output.inputs["Surface"])
+        for output in (n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld"):  # Atmos adds a Cycles one
+            tree.links.new(plain.outputs["Background"], output.inputs["Surface"])
     return len(bpy.data.node_groups["Atmos Aerial Perspective"].nodes)
 
 
@@ -106,7 +132,7 @@ def timed_render(scene) -> float:
 
 def bench_engine(engine: str, args: argparse.Namespace) -> list[str]:
     scene = build(args, engine)
-    configs = CONFIGS + (DECOMPOSED if args.decompose else ())
+    configs = CONFIGS + (SKY_TEXTURE,) + (DECOMPOSED if args.decompose else ())
     nodes, first = {}, {}
     for config in configs:
         nodes[config] = configure(scene, config, args.preset)
@@ -123,10 +149,12 @@ def bench_engine(engine: str, args: argparse.Namespace) -> list[str]:
             print(f"{engine} repeat {repeat + 1}/{args.repeats} {config}: {times[config][-1]:.2f} s", flush=True)
     api.disable(scene)
     base = statistics.median(times["off"])
+    sky_base = statistics.median(times[SKY_TEXTURE])
     rows = []
     for config in configs:
         median = statistics.median(times[config])
         rows.append(f"| {engine} | {config} | {nodes[config]} | {median:.2f} s | {median / base:.2f} | "
+                    f"{median / sky_base:.2f} | "
                     f"{first[config]:.2f} s | " + ", ".join(f"{t:.2f}" for t in times[config]) + " s |")
     return rows
 
@@ -151,9 +179,9 @@ def main(argv: list[str] | None = None) -> int:
           f"preset '{args.preset}', {args.threads} threads; {os.cpu_count()} CPU cores (nproc), {cpu_model()}, "
           f"{platform.system()} {platform.release()}; load average before {load_before}, after "
           f"{' / '.join(f'{v:.1f}' for v in os.getloadavg())}\n")
-    print("| engine | level | aerial nodes | median render | ratio to off | first render (shader compile) "
-          "| single renders |")
-    print("|---|---|---:|---:|---:|---:|---|")
+    print("| engine | level | aerial nodes | median render | ratio to off | ratio to off with Blender's Sky Texture "
+          "| first render (shader compile) | single renders |")
+    print("|---|---|---:|---:|---:|---:|---:|---|")
     print("\n".join(rows))
     atmos_addon.unregister()
     return 0

@@ -112,7 +112,9 @@ def enable_effect(scene) -> Report:
         report.messages.append(lamp_message)
     sync.sync_scene(scene)
     if scene.atmos.sky_enabled:
-        report.messages.append(world.install_sky(scene, sync.ensure_sky_group(scene)))
+        sky_features = sync.sky_features_from_settings(scene.atmos)
+        report.messages.append(world.install_sky(scene, sync.ensure_sky_group(scene), sky_features))
+        world.sync_sky_lighting(scene, sync.atmosphere_of(scene), sky_features)
     reason = in_render.unavailable_reason(scene)
     if reason:
         report.messages.append(reason)
@@ -139,7 +141,7 @@ def refresh_effect(scene) -> Report:
 def apply_sky_state(scene) -> None:
     """The ``sky_enabled`` update callback (effect on): add or remove the sky in the scene's world."""
     if scene.atmos.sky_enabled:
-        world.install_sky(scene, sync.ensure_sky_group(scene))
+        world.install_sky(scene, sync.ensure_sky_group(scene), sync.sky_features_from_settings(scene.atmos))
         sync.sync_scene(scene)
     else:
         world.uninstall_sky(scene)

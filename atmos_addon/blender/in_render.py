@@ -16,7 +16,8 @@ The mechanism is :mod:`node_groups.in_render`'s; this module puts it into a scen
   material without emission of its own (the added emission is zero on light-sampling rays, so sampling it
   as a light would only waste samples), remembered on the tagged node and restored on removal;
 - in the world, a Cycles-target World Output with a Background whose colour is the world's colour times the
-  compensation group (the world's own Background, or the Atmos sky's, is left as it is for Eevee);
+  compensation group (the world's own Background, or the Atmos sky's camera-ray Background, is left as it is
+  for Eevee; the In-Render output evaluates that sky for every ray, without the table sky of other rays);
 - the camera's clip end is raised to beyond the largest dome (Cycles shows the world past the clip end
   without the rest of the dome, which would leave the compensated sky too bright) and restored on removal.
 
@@ -358,7 +359,9 @@ def install_world(scene, features) -> str | None:
     output = _world_output(tree)
     if output is None or not output.inputs["Surface"].is_linked:
         return None
-    background = output.inputs["Surface"].links[0].from_node
+    from .world import camera_background
+
+    background = camera_background(output.inputs["Surface"].links[0].from_node)
     if background.bl_idname != "ShaderNodeBackground":
         return (f"World '{world.name}': its surface is not a Background shader, so in In-Render mode the sky is "
                 "seen through the dome's haze (darker toward the horizon); use the Atmos sky or Compositor mode")

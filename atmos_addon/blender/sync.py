@@ -16,7 +16,7 @@ from bpy.app.handlers import persistent
 from mathutils import Vector
 
 from .. import import_sibling
-from . import group_integrity
+from . import group_integrity, world
 from ..physics import Atmosphere, sun_irradiance_ground
 from ..physics.balanced import sun_optical_depths_ground
 from ..physics.sun import LUMINANCE_WEIGHTS
@@ -167,6 +167,7 @@ def sync_scene(scene) -> None:
         ensure_group(scene)  # cheap when current; rebuilds in place when the feature set changed
         if settings.sky_enabled:
             ensure_sky_group(scene)
+            world.sync_sky_lighting(scene, atmosphere, sky_features_from_settings(settings))
         group_integrity.stamp_new()  # cheap when every group is stamped
     node_groups().parameters.write_shader_parameters(
         scene,

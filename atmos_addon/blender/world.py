@@ -2,10 +2,15 @@
 """The Atmos sky in the scene's world, inserted non-destructively and removed exactly.
 
 The user's world data-block is kept (its Eevee probe resolution, sun-extraction and Cycles sampling settings,
-its other nodes): two nodes are added to its tree, the "Atmos Sky" group (:mod:`node_groups.sky`) and a
-Background shader of strength 1, and the Background feeds the active World Output's Surface. The link that
-fed Surface before is remembered (node name and socket identifier) and put back when the sky is removed;
-nothing else in the tree is touched, so the tree comes back exactly. A scene without a world gets a new world
+its other nodes): seven tagged nodes are added to its tree. The analytic "Atmos Sky" group
+(:mod:`node_groups.sky`) feeds a Background shader of strength 1, and that Background feeds the active World
+Output's Surface: what Eevee renders, and what Cycles' camera rays see. For Cycles a second, Cycles-target
+World Output is added: a Mix Shader on Light Path > Is Camera Ray gives camera rays that same Background and
+every other ray (light samples of the world, rays escaping after a bounce) the same sky from the world's own
+"Atmos Sky Lighting" group (:mod:`node_groups.sky_lighting`: a per-atmosphere table, a fraction of the cost);
+Cycles skips the branch it does not pick. The link that fed Surface before is remembered (node name and socket
+identifier) and put back when the sky is removed; nothing else in the tree is touched, so the tree comes back
+exactly. :func:`sync_sky_lighting` writes the table when the atmosphere changes. A scene without a world gets a new world
 "Atmos Sky World", removed again (with the scene's world slot emptied) on removal.
 
 Cycles importance-samples the world only when its sampling method is not "None"; an Atmos sky with sampling
@@ -26,6 +31,16 @@ STATE_KEY = "atmos_sky"
 CREATED_WORLD_NAME = "Atmos Sky World"
 SKY_NODE_TAG = "sky"
 BACKGROUND_TAG = "sky background"
+LIGHTING_TAG = "sky lighting"
+LIGHTING_BACKGROUND_TAG = "sky lighting background"
+RAY_SWITCH_TAG = "sky ray switch"
+MIX_TAG = "sky mix"
+CYCLES_OUTPUT_TAG = "sky cycles output"
+#: Every tag of the nodes :func:`install_sky` adds.
+TAGS = (SKY_NODE_TAG, BACKGROUND_TAG, LIGHTING_TAG, LIGHTING_BACKGROUND_TAG, RAY_SWITCH_TAG, MIX_TAG,
+        CYCLES_OUTPUT_TAG)
+#: Custom property on the added Cycles output: the user's Cycles output that was active before (re-activated).
+REACTIVATE_KEY = "atmos_reactivate"
 #: Cycles world importance map width (pixels) while the Atmos sky is in the world (height is half).
 SKY_IMPORTANCE_MAP_RESOLUTION = 256
 
@@ -47,19 +62,83 @@ def tagged_nodes(world: bpy.types.World | None) -> list[bpy.types.Node]:
     """The nodes the sky added to ``world``'s tree."""
     if world is None or world.node_tree is None:
         return []
-    return [n for n in world.node_tree.nodes if n.get(TAG) in (SKY_NODE_TAG, BACKGROUND_TAG)]
+    return [n for n in world.node_tree.nodes if n.get(TAG) in TAGS]
 
 
-def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree) -> str:
+def _tagged(world: bpy.types.World, tag: str, bl_idname: str | None = None) -> bpy.types.Node | None:
+    return next((n for n in tagged_nodes(world) if n.get(TAG) == tag
+                 and (bl_idname is None or n.bl_idname == bl_idname)), None)
+
+
+def camera_background(node: bpy.types.Node) -> bpy.types.Node:
+    """The Background that camera rays see through ``node`` (a World Output's Surface source): the Atmos sky's
+    camera Background when ``node`` is its ray switch, else ``node`` itself."""
+    if node.get(TAG) == MIX_TAG and node.inputs[2].is_linked:
+        return node.inputs[2].links[0].from_node
+    return node
+
+
+def _add_lighting_branch(tree: bpy.types.NodeTree, features, background: bpy.types.Node) -> None:
+    """The lighting group and its Background, the ray switch and Mix Shader, and a Cycles World Output for them.
+
+    Only Cycles gets the switch: Eevee renders the world once into its light probes (no per-sample cost to
+    save) and its shader compiler (Mesa's llvmpipe, measured) did not finish a world with the switched Mix
+    Shader in 10 minutes, where the camera sky alone compiles in 2 s. Blender prefers an output of the engine's
+    own target to an "All" one, so the added Cycles output takes over in Cycles only; where the user already
+    has a Cycles-target output, ours is made the active one and theirs re-activated on removal.
+    """
+    from .sync import node_groups
+
+    x, y = background.location
+    lighting = tree.nodes.new("ShaderNodeGroup")
+    lighting.node_tree = node_groups().sky_lighting.new_sky_lighting_group(features)
+    lighting.label = "Atmos Sky Lighting"
+    lighting_background = tree.nodes.new("ShaderNodeBackground")
+    lighting_background.label = "Atmos Sky Lighting Background"
+    lighting_background.inputs["Strength"].default_value = 1.0
+    switch = tree.nodes.new("ShaderNodeLightPath")
+    switch.label = "Atmos Sky Ray Switch"
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.label = "Atmos Sky (camera rays: analytic; other rays: table)"
+    output = tree.nodes.new("ShaderNodeOutputWorld")
+    output.label = "Atmos Sky Output (Cycles)"
+    output.target = "CYCLES"
+    for node, tag, location in ((lighting, LIGHTING_TAG, (x - 240.0, y - 200.0)),
+                                (lighting_background, LIGHTING_BACKGROUND_TAG, (x, y - 200.0)),
+                                (switch, RAY_SWITCH_TAG, (x, y + 260.0)), (mix, MIX_TAG, (x + 200.0, y - 100.0)),
+                                (output, CYCLES_OUTPUT_TAG, (x + 400.0, y - 100.0))):
+        node[TAG] = tag
+        node.location = location
+    tree.links.new(lighting.outputs[0], lighting_background.inputs["Color"])
+    tree.links.new(switch.outputs["Is Camera Ray"], mix.inputs["Fac"])
+    tree.links.new(lighting_background.outputs["Background"], mix.inputs[1])
+    tree.links.new(background.outputs["Background"], mix.inputs[2])
+    tree.links.new(mix.outputs["Shader"], output.inputs["Surface"])
+    others = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n != output and n.target == "CYCLES"]
+    if others:
+        active = next((n for n in others if n.is_active_output), None)
+        if active is not None:
+            output[REACTIVATE_KEY] = active.name
+        output.is_active_output = True
+
+
+def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, features=None) -> str:
     """Show the sky ``group`` in ``scene``'s world (idempotent: an installed sky only gets ``group`` set).
 
-    Returns a sentence for the report.
+    ``features`` (the sky's :class:`~node_groups.sky.SkyFeatures`, default: all terms) shape the lighting group.
+    A sky installed by an Atmos without the lighting branch gets it. Returns a sentence for the report.
     """
+    from .sync import node_groups
+
+    features = features if features is not None else node_groups().sky.SkyFeatures()
     world = scene.world
     if world is not None and tagged_nodes(world):
         for node in tagged_nodes(world):
             if node.get(TAG) == SKY_NODE_TAG and node.node_tree != group:
                 node.node_tree = group
+        background = _tagged(world, BACKGROUND_TAG, "ShaderNodeBackground")
+        if _tagged(world, MIX_TAG) is None and background is not None:
+            _add_lighting_branch(world.node_tree, features, background)
         return f"Sky: in world '{world.name}'"
     state: dict = {}
     if world is None:
@@ -104,6 +183,7 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree) -> str:
     background.location = (x - 200.0, y - 320.0)
     tree.links.new(sky.outputs[0], background.inputs["Color"])
     tree.links.new(background.outputs["Background"], surface)
+    _add_lighting_branch(tree, features, background)
     scene[STATE_KEY] = state
     return f"Sky: in world '{world.name}'" + (" (created)" if "created_world" in state else "")
 
@@ -123,8 +203,15 @@ def uninstall_sky(scene: bpy.types.Scene) -> None:
             bpy.data.worlds.remove(world)
     elif world is not None and world.node_tree is not None:
         tree = world.node_tree
+        lighting = [n.node_tree for n in tagged_nodes(world) if n.get(TAG) == LIGHTING_TAG]
+        reactivate = next((n.get(REACTIVATE_KEY) for n in tagged_nodes(world) if n.get(REACTIVATE_KEY)), None)
         for node in tagged_nodes(world):
             tree.nodes.remove(node)
+        if reactivate and tree.nodes.get(reactivate) is not None:
+            tree.nodes[reactivate].is_active_output = True
+        for group in lighting:
+            if group is not None and group.users == 0:
+                bpy.data.node_groups.remove(group)
         output = tree.nodes.get(state.get("output", ""))
         previous = state.get("previous")
         if output is not None and previous:
@@ -144,9 +231,40 @@ def uninstall_sky(scene: bpy.types.Scene) -> None:
 
 
 def remove_unused_sky_group() -> None:
-    """Delete the "Atmos Sky" node group once no world uses it (disabling leaves no orphan data behind)."""
+    """Delete the "Atmos Sky" node group and lighting groups once no world uses them (no orphan data left)."""
     from .sync import node_groups
 
-    group = bpy.data.node_groups.get(node_groups().sky.SKY_GROUP_NAME)
-    if group is not None and group.users == 0:
-        bpy.data.node_groups.remove(group)
+    groups = node_groups()
+    for group in list(bpy.data.node_groups):
+        if group.users == 0 and (group.name == groups.sky.SKY_GROUP_NAME
+                                 or groups.sky_lighting.is_sky_lighting_group(group)):
+            bpy.data.node_groups.remove(group)
+
+
+def _table_key(atmosphere) -> str:
+    """The atmosphere values the lighting table depends on, as text (stored on the lighting group)."""
+    values = [*atmosphere.rayleigh_scattering, *atmosphere.mie_scattering, *atmosphere.mie_absorption,
+              atmosphere.planet_radius, atmosphere.rayleigh_scale_height, atmosphere.mie_scale_height]
+    return " ".join(f"{float(v):.9g}" for v in values)
+
+
+def sync_sky_lighting(scene: bpy.types.Scene, atmosphere, features) -> None:
+    """Rebuild the world's lighting group if stale for ``features`` and write its table if the atmosphere changed.
+
+    Cheap when nothing changed (one key comparison): safe on every parameter sync.
+    """
+    from ..physics.sky_table import sky_lighting_table
+    from .sync import node_groups
+
+    node = _tagged(scene.world, LIGHTING_TAG) if scene.world is not None else None
+    if node is None or node.node_tree is None:
+        return
+    module = node_groups().sky_lighting
+    tree = node.node_tree
+    module.ensure_current(tree, features)
+    key = _table_key(atmosphere)
+    if tree.get(module.TABLE_KEY) == key:
+        return
+    table = sky_lighting_table(atmosphere)
+    module.write_sky_table(tree, table.coordinate,
+                           (table.scattering_rayleigh, table.scattering_mie, table.transmittance), key)

@@ -28,7 +28,9 @@ from atmos_addon.physics.sky import (CHAPMAN_APPROX_P, SUN_LIMB_DARKENING, aeria
 from atmos_addon.physics.sun import SUN_ANGULAR_RADIUS_RAD
 from node_groups import (OUTPUT_INSCATTERING, OUTPUT_RADIANCE, SKY_NODE_COUNTS, AerialFeatures, SkyFeatures,
                          ensure_aerial_perspective_group, ensure_sky_group, parameters, write_shader_parameters)
+from node_groups import sky_lighting
 from node_groups.dome import CHAPMAN_APPROX_P as NODE_CHAPMAN_P
+from atmos_addon.physics.sky_table import sky_lighting_table
 
 ATMOSPHERE = Atmosphere()
 ALBEDO = (0.18, 0.2, 0.15)
@@ -164,6 +166,106 @@ def test_sky_finite_for_every_sun(engine):
         image = ru.render_to_array(scene)
         assert np.all(np.isfinite(image)), f"{engine}: non-finite sky for sun elevation {elevation}"
         assert np.all(image[..., :3] >= 0.0)
+
+
+def _lighting_group(features: SkyFeatures = SkyFeatures(), atmosphere: Atmosphere = ATMOSPHERE):
+    """A lighting group with the table of ``atmosphere`` written in."""
+    group = sky_lighting.new_sky_lighting_group(features)
+    table = sky_lighting_table(atmosphere)
+    sky_lighting.write_sky_table(group, table.coordinate, (table.scattering_rayleigh, table.scattering_mie,
+                                                           table.transmittance), "test")
+    return group
+
+
+def test_sky_lighting_group_counts():
+    ru.reset_scene()
+    for mie in (False, True):
+        for absorption in (False, True):
+            for ground in ("ALBEDO", "BLACK"):
+                features = SkyFeatures(mie, absorption, ground)
+                group = sky_lighting.new_sky_lighting_group(features)
+                assert len(group.nodes) == sky_lighting.SKY_LIGHTING_NODE_COUNTS[features.key]
+                assert sky_lighting.is_current(group, features) and sky_lighting.is_sky_lighting_group(group)
+                assert sky_lighting.TABLE_KEY not in group  # filled by write_sky_table only
+    group = _lighting_group()
+    curve = group.nodes[sky_lighting.TABLE_NODES[0]].mapping.curves[0]
+    assert len(curve.points) == 257 and all(p.handle_type == "VECTOR" for p in curve.points)
+    assert not sky_lighting.ensure_current(group, SkyFeatures())  # current: untouched, table kept
+    assert group[sky_lighting.TABLE_KEY] == "test"
+    assert sky_lighting.ensure_current(group, SkyFeatures(ground="BLACK"))  # stale: rebuilt, table to be written
+    assert sky_lighting.TABLE_KEY not in group and sky_lighting.TABLE_NODES[2] not in group.nodes
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_sky_lighting_group_matches_the_sky(engine):
+    """The table sky (the world's non-camera rays) against the physics core's dome sky, disk excluded."""
+    scene, horizon, zenith = _sky_scene(engine)
+    tree = scene.world.node_tree
+    group = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeGroup")
+    group.node_tree = _lighting_group()
+    worst = 0.0
+    for label, elevation, azimuth in (("noon", 60.0, 150.0), ("sunset", 2.0, 45.0), ("night", -12.0, 200.0)):
+        sun = _sun(elevation, azimuth)
+        e_sun = _write(scene, sun)
+        for camera, (width, height) in ((horizon, (16, 8)), (zenith, (4, 4))):
+            image, expected, _ = _render_sky(scene, camera, sun, e_sun, width, height)
+            error = _relative_error(image, expected)
+            assert error.max() < TOLERANCE[engine], f"{engine} {label} {camera.name}: worst {error.max():.2e}"
+            worst = max(worst, float(error.max()))
+    print(f"\nsky lighting table {engine} (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
+
+
+def _world_lit_plane_scene(engine: str):
+    """A white diffuse floor seen from 10 m above, lit by the world alone (no lamp)."""
+    scene = ru.reset_scene()
+    ru.make_camera(scene, location=(0.0, 0.0, 10.0), fov_rad=math.radians(40.0))
+    material = bpy.data.materials.new("White floor")
+    _use_nodes(material)
+    material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    material.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 1.0
+    ru.make_plane(scene, "floor", [(-50, -50, 0), (50, -50, 0), (50, 50, 0), (-50, 50, 0)], material)
+    ru.set_engine(scene, engine, width=8, height=8)
+    if engine == "CYCLES":
+        scene.cycles.samples = 64
+        scene.cycles.max_bounces = 1
+        scene.cycles.seed = 0
+    else:
+        scene.eevee.taa_render_samples = 4
+    return scene
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_installed_sky_lights_with_the_table_and_shows_the_analytic_sky(addon, engine):
+    """Through the installed world: camera rays see the analytic sky with its disk, light comes from the table.
+
+    Emptying the table (all zeros) must darken the world-lit floor in Cycles (only non-camera rays read it)
+    and leave the camera's sky pixels exactly as they were."""
+    scene = _world_lit_plane_scene(engine)
+    scene.atmos.drive_sun_lamp = False  # no lamp: the world is the only light
+    effect.enable_effect(scene)
+    scene.render.use_compositing = False
+    assert not any(obj.type == "LIGHT" for obj in scene.objects)
+    lighting = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.LIGHTING_TAG)
+    assert lighting.node_tree[sky_lighting.TABLE_KEY] == world._table_key(sync.atmosphere_of(scene))
+    lit = ru.render_to_array(scene)[..., :3].mean(axis=(0, 1))
+    camera = scene.camera
+    camera.location = (0.0, 0.0, 20.0)
+    camera.rotation_euler = (math.radians(90.0), 0.0, 0.0)  # the sky to the north, above the floor's edge
+    sky = ru.render_to_array(scene)[:4, :, :3]
+    empty = np.zeros((257, 3))
+    sky_lighting.write_sky_table(lighting.node_tree, np.linspace(0.0, 1.0, 257), (empty, empty, empty), "empty")
+    sky_without_table = ru.render_to_array(scene)[:4, :, :3]
+    camera.location, camera.rotation_euler = (0.0, 0.0, 10.0), (0.0, 0.0, 0.0)
+    unlit = ru.render_to_array(scene)[..., :3].mean(axis=(0, 1))
+    print(f"\n{engine}: floor lit by the table sky {lit}, with the table emptied {unlit}")
+    assert np.all(lit > 0.05)
+    np.testing.assert_allclose(sky_without_table, sky, rtol=1e-6)  # camera rays never read the table
+    if engine == "CYCLES":
+        assert np.all(unlit < 1e-3 * lit)  # every light sample and escaping ray read it
+    else:
+        np.testing.assert_allclose(unlit, lit, rtol=1e-6)  # Eevee renders the analytic sky only (world.py)
+    effect.disable_effect(scene)
+    assert not any(sky_lighting.is_sky_lighting_group(g) for g in bpy.data.node_groups)
 
 
 def _inscattering_material() -> bpy.types.Material:
@@ -314,21 +416,26 @@ def test_world_restored_exactly(addon):
     scene.world = user_world
     before = _world_state(scene)
     effect.enable_effect(scene)
-    assert scene.world == user_world and len(world.tagged_nodes(user_world)) == 2
-    output = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld")
-    assert output.inputs["Surface"].links[0].from_node.get("atmos_tag") == world.BACKGROUND_TAG
+    assert scene.world == user_world and len(world.tagged_nodes(user_world)) == len(world.TAGS)
+    output = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and "atmos_tag" not in n)
+    assert output.inputs["Surface"].links[0].from_node.get("atmos_tag") == world.BACKGROUND_TAG  # Eevee, all rays
+    cycles_output = next(n for n in world.tagged_nodes(user_world) if n.bl_idname == "ShaderNodeOutputWorld")
+    assert cycles_output.target == "CYCLES"
+    switch = cycles_output.inputs["Surface"].links[0].from_node  # Cycles: camera rays analytic, the rest the table
+    assert switch.get("atmos_tag") == world.MIX_TAG
+    assert world.camera_background(switch).get("atmos_tag") == world.BACKGROUND_TAG
     # importance sampling was off: switched on, with a coarse map (the sky is smooth)
     assert user_world.cycles.sampling_method == "MANUAL"
     assert user_world.cycles.sample_map_resolution == world.SKY_IMPORTANCE_MAP_RESOLUTION
     effect.enable_effect(scene)  # idempotent
-    assert len(world.tagged_nodes(user_world)) == 2
+    assert len(world.tagged_nodes(user_world)) == len(world.TAGS)
     scene.atmos.sky_enabled = False
     assert _world_state(scene) == before
     scene.atmos.sky_enabled = True
-    assert len(world.tagged_nodes(user_world)) == 2
+    assert len(world.tagged_nodes(user_world)) == len(world.TAGS)
     effect.disable_effect(scene)
     assert _world_state(scene) == before and "atmos_sky" not in scene
-    assert "Atmos Sky" not in bpy.data.node_groups  # no orphan group left behind
+    assert not any(g.name.startswith("Atmos Sky") for g in bpy.data.node_groups)  # no orphan group left behind
 
     scene.world = None  # no world: one is created, then removed
     effect.enable_effect(scene)
