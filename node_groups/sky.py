@@ -121,19 +121,19 @@ def ground(g: GraphBuilder, view_z: Socket, sun_z: Socket, f_ex: Socket) -> Sock
 # -- the group ---------------------------------------------------------------------------------------
 
 
-def _ensure_interface(tree: bpy.types.ShaderNodeTree) -> None:
+def ensure_radiance_output(tree: bpy.types.ShaderNodeTree, description: str) -> None:
     """Add the Radiance output if missing (an existing socket, and the links to it, are kept)."""
     present = {item.name for item in tree.interface.items_tree
                if item.item_type == "SOCKET" and item.in_out == "OUTPUT"}
     if OUTPUT_RADIANCE not in present:
         socket = tree.interface.new_socket(OUTPUT_RADIANCE, in_out="OUTPUT", socket_type="NodeSocketColor")
-        socket.description = "Sky radiance along the view ray (sky, sun disk, ground): feed a Background shader"
+        socket.description = description
 
 
 def build_sky(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
     """Clear ``tree``'s nodes and build the sky graph for ``features`` (interface kept)."""
     tree.nodes.clear()
-    _ensure_interface(tree)
+    ensure_radiance_output(tree, "Sky radiance along the view ray (sky, sun disk, ground): feed a Background shader")
     g = GraphBuilder(tree)
     view = view_direction(g)
     _, _, view_z = g.separate(view, label="v")

@@ -35,7 +35,7 @@ from . import parameters
 from .aerial_perspective import phase_henyey_greenstein, phase_rayleigh
 from .dome import cos_theta_to_sun, sun_direction, view_direction
 from .graph import GraphBuilder, Socket
-from .sky import OUTPUT_RADIANCE, SkyFeatures, ground
+from .sky import OUTPUT_RADIANCE, SkyFeatures, ensure_radiance_output, ground
 
 #: Name of a new lighting group (Blender numbers further copies: one per world).
 SKY_LIGHTING_GROUP_NAME = "Atmos Sky Lighting"
@@ -61,18 +61,10 @@ def table_lookup(g: GraphBuilder, u: Socket, name: str, *, label: str) -> Socket
     return node.outputs["Color"]
 
 
-def _ensure_interface(tree: bpy.types.ShaderNodeTree) -> None:
-    present = {item.name for item in tree.interface.items_tree
-               if item.item_type == "SOCKET" and item.in_out == "OUTPUT"}
-    if OUTPUT_RADIANCE not in present:
-        socket = tree.interface.new_socket(OUTPUT_RADIANCE, in_out="OUTPUT", socket_type="NodeSocketColor")
-        socket.description = "Sky radiance along the ray from the table (sky and ground, no sun disk)"
-
-
 def build_sky_lighting(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
     """Clear ``tree``'s nodes and build the table sky for ``features`` (interface kept; the table is emptied)."""
     tree.nodes.clear()
-    _ensure_interface(tree)
+    ensure_radiance_output(tree, "Sky radiance along the ray from the table (sky and ground, no sun disk)")
     g = GraphBuilder(tree)
     view = view_direction(g)
     _, _, view_z = g.separate(view, label="v")
