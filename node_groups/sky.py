@@ -146,17 +146,27 @@ def build_sky(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
     if features.ground == "ALBEDO":
         _, _, sun_z = g.separate(sun, label="l")
         radiance = g.add(radiance, ground(g, view_z, sun_z, f_ex), label="sky + disk + ground")
+    finish_radiance_group(g, radiance, SKY_GROUP_VERSION, features)
+
+
+def finish_radiance_group(g: GraphBuilder, radiance: Socket, version: int, features: SkyFeatures) -> None:
+    """Link ``radiance`` to the Radiance output, lay the tree out and stamp its ``version`` and ``features``."""
     output = g.node("NodeGroupOutput", label="Group Output")
-    tree.links.new(radiance, output.inputs[OUTPUT_RADIANCE])
+    g.tree.links.new(radiance, output.inputs[OUTPUT_RADIANCE])
     g.set_depth(output, g.max_depth + 1)
     g.layout()
-    tree[_VERSION_KEY] = SKY_GROUP_VERSION
-    tree[_FEATURES_KEY] = features.key
+    g.tree[_VERSION_KEY] = version
+    g.tree[_FEATURES_KEY] = features.key
+
+
+def is_stamped(tree: bpy.types.NodeTree, version: int, features: SkyFeatures) -> bool:
+    """True if :func:`finish_radiance_group` stamped ``tree`` with ``version`` and ``features``."""
+    return tree.get(_VERSION_KEY) == version and tree.get(_FEATURES_KEY) == features.key
 
 
 def is_current(tree: bpy.types.NodeTree, features: SkyFeatures) -> bool:
     """True if ``tree`` was built by this version for ``features``."""
-    return tree.get(_VERSION_KEY) == SKY_GROUP_VERSION and tree.get(_FEATURES_KEY) == features.key
+    return is_stamped(tree, SKY_GROUP_VERSION, features)
 
 
 def ensure_sky_group(features: SkyFeatures = SkyFeatures()) -> bpy.types.ShaderNodeTree:

@@ -35,7 +35,7 @@ from . import parameters
 from .aerial_perspective import phase_henyey_greenstein, phase_rayleigh
 from .dome import cos_theta_to_sun, sun_direction, view_direction
 from .graph import GraphBuilder, Socket
-from .sky import OUTPUT_RADIANCE, SkyFeatures, ensure_radiance_output, ground
+from .sky import SkyFeatures, ensure_radiance_output, finish_radiance_group, ground, is_stamped
 
 #: Name of a new lighting group (Blender numbers further copies: one per world).
 SKY_LIGHTING_GROUP_NAME = "Atmos Sky Lighting"
@@ -47,8 +47,6 @@ TABLE_NODES = ("Atmos table A_R", "Atmos table A_M", "Atmos table F_ex")
 TABLE_KEY = "atmos_table_key"
 #: Custom property marking a tree as a lighting group (copies carry numbered names).
 KIND_KEY = "atmos_sky_lighting"
-_VERSION_KEY = "atmos_version"
-_FEATURES_KEY = "atmos_features"
 
 
 def table_lookup(g: GraphBuilder, u: Socket, name: str, *, label: str) -> Socket:
@@ -81,12 +79,7 @@ def build_sky_lighting(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) ->
         _, _, sun_z = g.separate(sun, label="l")
         f_ex = table_lookup(g, u, TABLE_NODES[2], label="F_ex(u)")
         radiance = g.add(radiance, ground(g, view_z, sun_z, f_ex), label="sky + ground")
-    output = g.node("NodeGroupOutput", label="Group Output")
-    tree.links.new(radiance, output.inputs[OUTPUT_RADIANCE])
-    g.set_depth(output, g.max_depth + 1)
-    g.layout()
-    tree[_VERSION_KEY] = SKY_LIGHTING_GROUP_VERSION
-    tree[_FEATURES_KEY] = features.key
+    finish_radiance_group(g, radiance, SKY_LIGHTING_GROUP_VERSION, features)
     tree[KIND_KEY] = True
     if TABLE_KEY in tree:
         del tree[TABLE_KEY]
@@ -94,7 +87,7 @@ def build_sky_lighting(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) ->
 
 def is_current(tree: bpy.types.NodeTree, features: SkyFeatures) -> bool:
     """True if ``tree`` was built by this version for ``features``."""
-    return tree.get(_VERSION_KEY) == SKY_LIGHTING_GROUP_VERSION and tree.get(_FEATURES_KEY) == features.key
+    return is_stamped(tree, SKY_LIGHTING_GROUP_VERSION, features)
 
 
 def new_sky_lighting_group(features: SkyFeatures) -> bpy.types.ShaderNodeTree:

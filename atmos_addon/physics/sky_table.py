@@ -111,7 +111,8 @@ def sky_radiance_from_table(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosp
     mu = clamp_cosine(np.sum(view * sun, axis=-1))
     e_sun = np.maximum(np.asarray(sun_irradiance, dtype=np.float64), 0.0)
     phase_mie = phase_hg(mu, atm.mie_g)
-    phase_mie = phase_mie if phase_mie.shape[-1:] == (3,) and phase_mie.ndim > mu.ndim else phase_mie[..., np.newaxis]
+    if np.ndim(atm.mie_g) == 0:  # a scalar g gives mu's shape; a per-channel g adds the channel axis itself
+        phase_mie = phase_mie[..., np.newaxis]
     radiance = e_sun * (_lookup(table, table.scattering_rayleigh, u) * phase_rayleigh(mu)[..., np.newaxis]
                         + _lookup(table, table.scattering_mie, u) * phase_mie)
     if np.any(np.asarray(ground_albedo) != 0.0):
