@@ -58,7 +58,8 @@ SEGMENT_GROUP_NAME = "Atmos Aerial Perspective (Ray Segment)"
 #: Where s comes from: the camera's view distance (the AOV path) or Light Path > Ray Length (per ray segment).
 DISTANCE_SOURCES = ("VIEW", "RAY")
 #: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
-NODE_GROUP_VERSION = 4  # 2: lengths clamped to the virtual sky dome; 3: the layered dome; 4: powers, no phi1
+NODE_GROUP_VERSION = 5  # 2: lengths clamped to the virtual sky dome; 3: the layered dome; 4: powers, no phi1;
+#                          5: Precise distances taken at most to the top of the atmosphere
 #: Floor of the Henyey-Greenstein denominator base (the physics core's ``HG_DENOMINATOR_FLOOR``).
 HG_DENOMINATOR_FLOOR = 1.0e-12
 
@@ -332,5 +333,5 @@ def describe_features(features: AerialFeatures) -> str:
 #: Nodes in the group per feature key for this :data:`NODE_GROUP_VERSION` (group output included).
 NODE_COUNTS = {"rayleigh": 47, "rayleigh+abs": 73, "rayleigh+mie": 99, "rayleigh+mie+abs": 101,
                "rayleigh+balanced": 295, "rayleigh+abs+balanced": 300, "rayleigh+mie+balanced": 325,
-               "rayleigh+mie+abs+balanced": 327, "rayleigh+precise": 153, "rayleigh+abs+precise": 153,
-               "rayleigh+mie+precise": 220, "rayleigh+mie+abs+precise": 220}
+               "rayleigh+mie+abs+balanced": 327, "rayleigh+precise": 174, "rayleigh+abs+precise": 174,
+               "rayleigh+mie+precise": 241, "rayleigh+mie+abs+precise": 241}

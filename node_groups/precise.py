@@ -75,19 +75,20 @@ class _Bilinear:
     """Bilinear samples of the image at (x + col, row) for integer x offsets: the four texels around it fetched
     unfiltered and blended here. (A filtered texture lookup would do the same in Cycles, but Eevee filters with
     mipmaps chosen from screen-space derivatives, which the slice jumps of the atlas coordinates make huge.)
-    The fractions are shared by every block: their offsets are whole texels."""
+    The fractions are shared by every block: their offsets are whole texels. With ``whole_row`` the row is a whole
+    number (the sky's rays end on the top row or the ground's): one row, two texels per sample."""
 
     def __init__(self, g: GraphBuilder, x0: Socket, y0: Socket, column: Socket, row: Socket, width: Socket,
-                 height: Socket) -> None:
+                 height: Socket, whole_row: bool = False) -> None:
         self.g = g
         column_floor = g._math("FLOOR", column, label="floor(col)")
-        row_floor = g._math("FLOOR", row, label="floor(row)")
+        row_floor = row if whole_row else g._math("FLOOR", row, label="floor(row)")
         self.f_column = g.sub(column, column_floor, label="col fraction")
-        self.f_row = g.sub(row, row_floor, label="row fraction")
+        self.f_row = None if whole_row else g.sub(row, row_floor, label="row fraction")
         self.x = g.add(g.add(x0, 0.5), column_floor, label="x0 + floor(col) + 0.5")
         self.width = width
         v_low = g.div(g.add(g.add(y0, 0.5), row_floor), height, label="v (row)")
-        self.v = (v_low, g.add(v_low, g.div(1.0, height), label="v (row + 1)"))
+        self.v = (v_low,) if whole_row else (v_low, g.add(v_low, g.div(1.0, height), label="v (row + 1)"))
         self.step_u = g.div(1.0, width, label="1 / W")
 
     def sample(self, offset: Socket | float, label: str) -> Socket:
@@ -96,11 +97,34 @@ class _Bilinear:
         u_high = g.add(u_low, self.step_u)
         rows = [_lerp(g, _texel(g, u_low, v, label), _texel(g, u_high, v, label), self.f_column, f"{label} row")
                 for v in self.v]
-        return _lerp(g, rows[0], rows[1], self.f_row, label)
+        return rows[0] if self.f_row is None else _lerp(g, rows[0], rows[1], self.f_row, label)
 
 
-def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket) -> tuple[Socket, Socket]:
-    """(F_ex, L_in) sampled from the frame's table (module docstring)."""
+def distance_to_top(g: GraphBuilder, view_z: Socket, h_c: Socket, top: Socket, radius: Socket) -> Socket:
+    """Distance in m from the tile's camera (altitude h_c) to the top of the atmosphere along a ray with zenith
+    cosine ``view_z``: ``physics.precise.distance_to_top`` node for node (its docstring has the forms)."""
+    r_c_c = g.mul(g.add(radius, h_c, label="r_c"), view_z, label="r_c c")
+    top_term = g.mul(g.sub(top, h_c), g.add(g.add(g.mul(radius, 2.0, label="2 R"), top), h_c),
+                     label="K = (top - h_c)(2 R + top + h_c)")
+    root = g.sqrt(g.max(g.multiply_add(r_c_c, r_c_c, top_term), 0.0), label="sqrt(K + (r_c c)^2)")
+    up = g.div(top_term, g.max(g.add(root, r_c_c), 1.0), label="to the top (c >= 0)")
+    down = g.sub(root, r_c_c, label="to the top (c < 0)")
+    return g.max(g.select(g.less_than(view_z, 0.0, label="c < 0"), down, up), 0.0, label="to the top")
+
+
+def tile_camera(g: GraphBuilder) -> tuple[Socket, Socket, Socket]:
+    """(h_c, top, R) in m: the tile's camera altitude, the table's top and the planet radius (parameters)."""
+    _, _, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile h_c")
+    _, top, _ = g.separate(g.attribute(parameters.PRECISE_SCALE, output="Vector"), label="scale top")
+    return h_c, top, g.attribute(parameters.PLANET_RADIUS, output="Fac")
+
+
+def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket, to_top: Socket | None = None,
+                  whole_row: Socket | None = None) -> tuple[Socket, Socket]:
+    """(F_ex, L_in) sampled from the frame's table (module docstring), s taken at most to the top of the
+    atmosphere (:func:`distance_to_top`, or ``to_top`` where the caller has it: a surface out in space shows the
+    sky behind it). ``whole_row``: the table row where the caller knows it is a whole number (the sky: the top
+    row, or row 0 where the ray meets the ground), which skips the target altitude and half the texel fetches."""
     vx, vy, vz = g.separate(view, label="v")
     sun = sun_direction(g)
     sx, sy, _ = g.separate(sun, label="l")
@@ -108,13 +132,18 @@ def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket) -> tuple[S
     d_max, top, _ = g.separate(g.attribute(parameters.PRECISE_SCALE, output="Vector"), label="scale (D, top)")
     width, height, _ = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"), label="atlas (W, H)")
     radius = g.attribute(parameters.PLANET_RADIUS, output="Fac")
+    to_top = to_top if to_top is not None else distance_to_top(g, vz, h_c, top, radius)
+    s = g.min(g.max(s, 0.0), to_top, label="s, at most to the top")
 
-    r_c = g.add(radius, h_c, label="r_c")
-    rise = g.mul(g.multiply_add(g.mul(r_c, 2.0), vz, s), s, label="rise = (2 r_c v_z + s) s")
-    r_p = g.sqrt(g.max(g.multiply_add(r_c, r_c, rise), 0.0), label="r_p")
-    h_p = g.add(h_c, g.div(rise, g.add(r_p, r_c)), label="h_p")
-    fraction = g.min(g.max(g.div(h_p, top), 0.0), 1.0, label="h_p / top")
-    row = g.mul(g.pow(fraction, 1.0 / 3.0), float(ALTITUDES - 1), label="row")
+    if whole_row is None:
+        r_c = g.add(radius, h_c, label="r_c")
+        rise = g.mul(g.multiply_add(g.mul(r_c, 2.0), vz, s), s, label="rise = (2 r_c v_z + s) s")
+        r_p = g.sqrt(g.max(g.multiply_add(r_c, r_c, rise), 0.0), label="r_p")
+        h_p = g.add(h_c, g.div(rise, g.add(r_p, r_c)), label="h_p")
+        fraction = g.min(g.max(g.div(h_p, top), 0.0), 1.0, label="h_p / top")
+        row = g.mul(g.pow(fraction, 1.0 / 3.0), float(ALTITUDES - 1), label="row")
+    else:
+        row = whole_row
 
     cross = g.abs(g.sub(g.mul(vx, sy), g.mul(vy, sx)), label="|v x l|_z")
     dot = g.multiply_add(vx, sx, g.mul(vy, sy), label="(v . l)_xy")
@@ -122,7 +151,7 @@ def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket) -> tuple[S
     a0 = g.min(g._math("FLOOR", azimuth), float(AZIMUTHS - 2), label="a0")
     fa = g.sub(azimuth, a0, label="a - a0")
     column = g.mul(g.min(g.sqrt(g.div(s, d_max)), 1.0), float(DISTANCES - 1), label="col")
-    bilinear = _Bilinear(g, x0, y0, column, row, width, height)
+    bilinear = _Bilinear(g, x0, y0, column, row, width, height, whole_row=whole_row is not None)
     slice_offset = g.mul(a0, float(DISTANCES), label="a0 N_d")
 
     extinction = bilinear.sample(0.0, "tau / s")

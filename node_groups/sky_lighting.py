@@ -78,16 +78,17 @@ def build_sky_lighting(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) ->
     if features.ground == "ALBEDO":
         _, _, sun_z = g.separate(sun, label="l")
         f_ex = table_lookup(g, u, TABLE_NODES[2], label="F_ex(u)")
-        radiance = g.add(radiance, ground(g, view_z, sun_z, f_ex), label="sky + ground")
-    finish_radiance_group(g, radiance, SKY_LIGHTING_GROUP_VERSION, features)
+        below = g.less_than(view_z, 0.0, label="below horizon")
+        radiance = g.add(radiance, ground(g, below, sun_z, f_ex), label="sky + ground")
+    finish_radiance_group(g, radiance, SKY_LIGHTING_GROUP_VERSION, features.dome)
     tree[KIND_KEY] = True
     if TABLE_KEY in tree:
         del tree[TABLE_KEY]
 
 
 def is_current(tree: bpy.types.NodeTree, features: SkyFeatures) -> bool:
-    """True if ``tree`` was built by this version for ``features``."""
-    return is_stamped(tree, SKY_LIGHTING_GROUP_VERSION, features)
+    """True if ``tree`` was built by this version for ``features`` (their dome terms: the level is not used)."""
+    return is_stamped(tree, SKY_LIGHTING_GROUP_VERSION, features.dome)
 
 
 def new_sky_lighting_group(features: SkyFeatures) -> bpy.types.ShaderNodeTree:

@@ -111,13 +111,13 @@ def write_tiles(tiles: list[Tile]) -> bpy.types.Image:
 
 
 def _link_image(image: bpy.types.Image) -> None:
-    """Point the image nodes of the aerial group (if built) at ``image``."""
-    group = bpy.data.node_groups.get(node_groups().aerial_perspective.GROUP_NAME)
-    if group is None:
-        return
-    for node in group.nodes:
-        if node.bl_idname == "ShaderNodeTexImage" and node.image != image:
-            node.image = image
+    """Point the image nodes of the aerial group and of the Precise sky (those built) at ``image``."""
+    groups = node_groups()
+    for name in (groups.aerial_perspective.GROUP_NAME, groups.sky.SKY_GROUP_NAME):
+        group = bpy.data.node_groups.get(name)
+        for node in group.nodes if group is not None else ():
+            if node.bl_idname == "ShaderNodeTexImage" and node.image != image:
+                node.image = image
 
 
 def _write_parameters(scene, origin: tuple[int, int], camera_altitude_m: float, tile: Tile, top_m: float,

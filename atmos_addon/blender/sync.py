@@ -213,9 +213,11 @@ def _camera_z(scene) -> float | None:
 
 
 def sky_features_from_settings(settings):
-    """The sky group's feature set: the aerial terms plus the ground mode."""
+    """The sky group's feature set: the aerial terms, the ground mode, and the Precise table at the Precise level
+    (every other level shows the virtual-dome sky)."""
     aerial = features_from_settings(settings)
-    return node_groups().sky.SkyFeatures(mie=aerial.mie, absorption=aerial.absorption, ground=settings.sky_ground)
+    return node_groups().sky.SkyFeatures(mie=aerial.mie, absorption=aerial.absorption, ground=settings.sky_ground,
+                                         level="precise" if aerial.level == "precise" else "fast")
 
 
 def ensure_sky_group(scene):

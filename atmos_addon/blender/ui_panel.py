@@ -220,6 +220,12 @@ class ATMOS_PT_atmosphere_sky(_SubPanel, bpy.types.Panel):
         albedo = column.row()
         albedo.active = settings.sky_ground == "ALBEDO"
         albedo.prop(settings, "ground_albedo")
+        if settings.enabled and settings.sky_enabled:
+            from . import sync
+
+            precise = sync.sky_features_from_settings(settings).level == "precise"
+            column.label(text="Sky from the Precise table (this frame's bake)" if precise
+                         else "Sky from the virtual dome (Precise quality draws it from its table)")
 
 
 class ATMOS_PT_atmosphere_aerial(_SubPanel, bpy.types.Panel):

@@ -248,8 +248,23 @@ def _table_key(atmosphere) -> str:
     return " ".join(f"{float(v):.9g}" for v in values)
 
 
+def _route_other_rays(world: bpy.types.World, precise: bool) -> None:
+    """What Cycles' non-camera rays see: the lighting table's Background, or at the Precise level the camera's
+    Background (the Precise sky: its azimuth-dependent table does not factor into the lighting table's curves of
+    the elevation, and a sunset lit by the dome sky would be far darker than the sky the camera shows). Relinks
+    only when the route changes."""
+    mix = _tagged(world, MIX_TAG, "ShaderNodeMixShader")
+    source = _tagged(world, BACKGROUND_TAG if precise else LIGHTING_BACKGROUND_TAG, "ShaderNodeBackground")
+    if mix is None or source is None:
+        return
+    socket = mix.inputs[1]
+    if not (socket.is_linked and socket.links[0].from_node == source):
+        world.node_tree.links.new(source.outputs["Background"], socket)
+
+
 def sync_sky_lighting(scene: bpy.types.Scene, atmosphere, features) -> None:
-    """Rebuild the world's lighting group if stale for ``features`` and write its table if the atmosphere changed.
+    """Rebuild the world's lighting group if stale for ``features`` and write its table if the atmosphere changed;
+    at the Precise level route the other rays to the Precise sky (:func:`_route_other_rays`).
 
     Cheap when nothing changed (one key comparison): safe on every parameter sync.
     """
@@ -259,6 +274,7 @@ def sync_sky_lighting(scene: bpy.types.Scene, atmosphere, features) -> None:
     node = _tagged(scene.world, LIGHTING_TAG) if scene.world is not None else None
     if node is None or node.node_tree is None:
         return
+    _route_other_rays(scene.world, precise=features.level == "precise")
     module = node_groups().sky_lighting
     tree = node.node_tree
     module.ensure_current(tree, features)

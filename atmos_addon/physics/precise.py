@@ -393,10 +393,7 @@ def sky_radiance(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, *, ca
     r_ground = atm.planet_radius
     r_c = r_ground + max(float(camera_altitude_m), 0.0)
     c = views[..., 2]
-    to_top = -r_c * c + np.sqrt(np.maximum(r_c * r_c * (c * c - 1.0) + (r_ground + atm.atmosphere_height) ** 2, 0.0))
-    disc_ground = r_c * r_c * (c * c - 1.0) + r_ground * r_ground
-    hits = (c < 0.0) & (disc_ground >= 0.0)
-    length = np.where(hits, -r_c * c - np.sqrt(np.maximum(disc_ground, 0.0)), to_top)[..., None]   # (..., 1)
+    length = sky_path_length(c, camera_altitude_m, atm)[0][..., None]                  # (..., 1)
     w = np.linspace(0.0, 1.0, n_samples)
     t = length * w * w                                                                  # (..., S)
     radius = np.sqrt(np.maximum(r_c * r_c + 2.0 * r_c * t * c[..., None] + t * t, 0.0))
@@ -417,6 +414,74 @@ def sky_radiance(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, *, ca
     weights = _simpson_weights(n_samples)[:, None] * dt_dw
     radiance = atm.sun_irradiance_top * np.sum(weights * np.exp(-tau_to) * source, axis=-2)
     return radiance.reshape(given.shape[:-1] + (3,))
+
+
+def distance_to_top(cos_zenith: ArrayLike, camera_altitude_m: float, atm: Atmosphere,
+                    dtype: DTypeLike = np.float64) -> np.ndarray:
+    """Distance from the camera (altitude h_c, clamped at 0) along a ray with zenith cosine c = v_z to the top of
+    the atmosphere, m, without cancellation in float32 (the shaders' arithmetic, node for node):
+
+        K = (top - h_c)(2 R + top + h_c) = r_top^2 - r_c^2,   root = sqrt(K + (r_c c)^2)
+        K / (r_c c + root)  for c >= 0,   root - r_c c  for c < 0       floored at 0
+
+    (a camera above the top looking away from the atmosphere sees none of it); the denominator is floored at 1 m,
+    which keeps the branch not taken finite and changes no real path.
+    """
+    dt = np.dtype(dtype).type
+    c = np.asarray(cos_zenith, dtype=dt)
+    radius, top = dt(atm.planet_radius), dt(atm.atmosphere_height)
+    h_c = dt(max(float(camera_altitude_m), 0.0))
+    r_c_c = (radius + h_c) * c
+    top_term = (top - h_c) * (dt(2) * radius + top + h_c)
+    root = np.sqrt(np.maximum(top_term + r_c_c * r_c_c, dt(0)))
+    up = top_term / np.maximum(root + r_c_c, dt(1))
+    return np.maximum(np.where(c < 0, root - r_c_c, up), dt(0)).astype(dt)
+
+
+def sky_path_length(cos_zenith: ArrayLike, camera_altitude_m: float, atm: Atmosphere,
+                    dtype: DTypeLike = np.float64) -> tuple[np.ndarray, np.ndarray]:
+    """(length m, hits the ground) of the ray from the camera (altitude h_c, clamped at 0) with zenith cosine
+    c = v_z: to the spherical ground where it meets it, else to the top (:func:`distance_to_top`). The ground
+    without cancellation in float32 (the sky shader's arithmetic, node for node):
+
+        G = h_c (2 R + h_c) = r_c^2 - R^2,   meets it where c < 0 and (r_c c)^2 >= G,
+        at G / (sqrt(max((r_c c)^2 - G, 0)) - r_c c)
+
+    (the denominator floored at 1 m like the top's: a ray that meets the ground has one of at least sqrt(G),
+    5 km for a camera 2 m up).
+    """
+    dt = np.dtype(dtype).type
+    c = np.asarray(cos_zenith, dtype=dt)
+    radius = dt(atm.planet_radius)
+    h_c = dt(max(float(camera_altitude_m), 0.0))
+    r_c_c = (radius + h_c) * c
+    ground_term = h_c * (dt(2) * radius + h_c)
+    ground_disc = r_c_c * r_c_c - ground_term
+    hits = (c < 0) & (ground_disc >= 0)
+    to_ground = ground_term / np.maximum(np.sqrt(np.maximum(ground_disc, dt(0))) - r_c_c, dt(1))
+    to_top = distance_to_top(c, camera_altitude_m, atm, dt)
+    return np.maximum(np.where(hits, to_ground, to_top), dt(0)).astype(dt), hits
+
+
+def sky_from_tile(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere,
+                  dtype: DTypeLike = np.float32) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Precise sky from the frame's table: (F_ex, L_in, hits the ground) along unit ``view_dir`` (..., 3).
+
+    The table holds every ray from the camera to any target; a sky ray is the one whose target is the top of the
+    atmosphere, or the ground where the ray meets it: :func:`evaluate` at the :func:`sky_path_length`. So a far
+    surface's in-scattering (the aerial perspective at the Precise level) tends to exactly the sky behind it as
+    its distance reaches the path's: the same table cells, the same arithmetic. The row is the top's or the
+    ground's (row 0) exactly, not the one the target altitude's float32 cube root gives. What the "Atmos Sky" world group
+    evaluates at the Precise level (without the sun's disk and the lit ground, which it adds as the dome sky
+    does). Against the brute-force :func:`sky_radiance` (the tests): about 1 % mean.
+    """
+    dt = np.dtype(dtype).type
+    views = np.asarray(view_dir, dtype=dt)
+    altitude = float(tile.camera_radius_m - atm.planet_radius)
+    length, hits = sky_path_length(views[..., 2], altitude, atm, dt)
+    row = np.where(hits, dt(0), dt(tile.shape.altitudes - 1))   # the ray ends on the ground or at the top
+    f_ex, light = evaluate(tile, views, sun_dir, length, atm, dt, row=row)
+    return f_ex, light, hits
 
 
 def table_coordinates(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, distance_m: ArrayLike, atm: Atmosphere,
@@ -452,19 +517,25 @@ def sample(quantity: np.ndarray, row: np.ndarray, azimuth: np.ndarray, column: n
 
 
 def evaluate(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, distance_m: ArrayLike, atm: Atmosphere,
-             dtype: DTypeLike = np.float32) -> tuple[np.ndarray, np.ndarray]:
+             dtype: DTypeLike = np.float32, row: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(F_ex, L_in) per channel, (..., 3), sampled from ``tile`` the way the shader samples its image.
 
     ``view_dir`` (..., 3) and ``sun_dir`` (3,) unit vectors (z up, any azimuth), ``distance_m`` (...) in m; ``atm``
-    gives the planet, the table's top and the Mie anisotropy g.
+    gives the planet, the table's top and the Mie anisotropy g. A distance beyond the top of the atmosphere is
+    taken at the top (:func:`distance_to_top`): a surface out in space is seen through the whole atmosphere, so it
+    composites to exactly the Precise sky behind it (:func:`sky_from_tile`). ``row``: the table row where the
+    caller knows it (the sky's whole rows) instead of the one of the target's altitude.
     """
     dt = np.dtype(dtype).type
-    row, azimuth, column = table_coordinates(tile, view_dir, sun_dir, distance_m, atm, dtype)
+    views = np.asarray(view_dir, dtype=dt)
+    to_top = distance_to_top(views[..., 2], float(tile.camera_radius_m - atm.planet_radius), atm, dt)
+    d = np.minimum(np.maximum(np.asarray(distance_m, dtype=dt), dt(0)), to_top)
+    target_row, azimuth, column = table_coordinates(tile, views, sun_dir, d, atm, dtype)
+    row = target_row if row is None else np.broadcast_to(np.asarray(row, dtype=dt), target_row.shape)
     extinction_per_m = _bilinear(np.asarray(tile.mean_extinction, dtype=dt), row, column)
     a_r = sample(tile.a_rayleigh, row, azimuth, column, dtype)
     a_m = sample(tile.a_mie, row, azimuth, column, dtype)
-    nu = np.einsum("...i,i->...", np.asarray(view_dir, dtype=dt), np.asarray(sun_dir, dtype=dt))
-    d = np.maximum(np.asarray(distance_m, dtype=dt), dt(0))
+    nu = np.einsum("...i,i->...", views, np.asarray(sun_dir, dtype=dt))
     tau = extinction_per_m * d[..., None]
     f_ex = np.exp(-tau)
     one_minus_t = tau * one_minus_exp_over_x(tau, dtype)

@@ -215,6 +215,69 @@ def test_sky_lighting_group_matches_the_sky(engine):
     print(f"\nsky lighting table {engine} (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
 
 
+def _write_precise_sky(scene, sun: np.ndarray, altitude_m: float):
+    """Shader parameters and the one-tile Precise table for a camera ``altitude_m`` up, as the add-on writes them;
+    returns (E_sun, tile)."""
+    from atmos_addon.blender import precise_tables
+    from atmos_addon.physics.precise import bake_tile
+
+    e_sun = _write(scene, sun)
+    tile = bake_tile(ATMOSPHERE, altitude_m, math.asin(sun[2]))
+    image = precise_tables.write_tiles([tile])
+    precise_tables._write_parameters(scene, (0, 0), altitude_m, tile, ATMOSPHERE.atmosphere_height, tuple(image.size))
+    return e_sun, tile
+
+
+def test_precise_sky_group_counts():
+    ru.reset_scene()
+    for mie in (False, True):
+        for absorption in (False, True):
+            for ground in ("ALBEDO", "BLACK"):
+                features = SkyFeatures(mie, absorption, ground, level="precise")
+                tree = ensure_sky_group(features)
+                assert len(tree.nodes) == SKY_NODE_COUNTS[features.key]
+                assert sum(n.bl_idname == "ShaderNodeTexImage" for n in tree.nodes) == (10 if mie else 6)  # whole rows
+    assert features.dome == SkyFeatures(mie, absorption, ground)
+    with pytest.raises(ValueError):
+        SkyFeatures(level="balanced")
+
+
+@pytest.mark.parametrize("engine", ru.ENGINES)
+def test_precise_sky_matches_the_table_sampler(engine):
+    """The Precise sky group against ``physics.precise.sky_from_tile`` (float32) plus the lit ground where the ray
+    meets it: a ground camera and one 3 km up, a noon, a low and a sunset sun; the disk left out."""
+    from atmos_addon.physics.precise import sky_from_tile
+    from atmos_addon.physics.sky import ground_radiance
+
+    scene = ru.reset_scene()
+    zenith = ru.make_camera(scene, rotation_euler=(0.0, 0.0, 0.0), fov_rad=math.radians(30.0))
+    zenith.name = "Zenith"
+    horizon = ru.make_camera(scene, rotation_euler=(math.radians(92.0), 0.0, math.radians(-20.0)),
+                             fov_rad=math.radians(110.0))
+    _sky_world(scene, SkyFeatures(level="precise"))
+    bpy.context.view_layer.update()
+    worst = 0.0
+    for elevation, azimuth, altitude in ((60.0, 150.0, 2.0), (8.0, 30.0, 3000.0), (1.0, 45.0, 2.0)):
+        sun = _sun(elevation, azimuth)
+        e_sun, tile = _write_precise_sky(scene, sun, altitude)
+        for camera, (width, height) in ((horizon, (16, 8)), (zenith, (4, 4))):
+            scene.camera = camera
+            ru.set_engine(scene, engine, width=width, height=height)
+            image = ru.render_to_array(scene)[..., :3]
+            directions = ru.pixel_centre_directions(camera, width, height)
+            f_ex, light, hits = sky_from_tile(tile, directions, sun, ATMOSPHERE)
+            expected = light + hits[..., None] * ground_radiance(sun, e_sun, ALBEDO) * f_ex
+            off_sun = np.degrees(np.arccos(np.clip(directions @ sun, -1.0, 1.0))) > 1.5
+            assert np.all(np.isfinite(image)) and np.all(image >= 0.0)
+            error = _relative_error(image, expected)[off_sun]
+            label = f"{engine} sun {elevation} deg, camera {altitude} m, {camera.name}"
+            assert error.max() < TOLERANCE[engine], f"{label}: worst relative error {error.max():.2e}"
+            if camera is horizon:
+                assert hits.any() and not hits.all(), label  # the ground's lit pixels are in the comparison
+            worst = max(worst, float(error.max()))
+    print(f"\nPrecise sky {engine} (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
+
+
 def _world_lit_plane_scene(engine: str):
     """A white diffuse floor seen from 10 m above, lit by the world alone (no lamp)."""
     scene = ru.reset_scene()
@@ -335,6 +398,35 @@ def test_seamless_horizon(engine):
 
 
 # -- sun lamp, world insertion, baking (the add-on registered) -----------------------------------
+
+
+def test_precise_level_shows_and_lights_with_the_precise_sky(addon):
+    """At the Precise level the world's sky is the Precise one for every ray in Cycles (the lighting table's dome
+    sky would light a sunset far darker than the sky the camera shows): emptying the table changes nothing, and
+    back at Fast the other rays read the table again."""
+    scene = _world_lit_plane_scene("CYCLES")
+    scene.atmos.drive_sun_lamp = False
+    scene.atmos.quality = "PRECISE"
+    effect.enable_effect(scene)
+    scene.render.use_compositing = False
+    sky = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.SKY_NODE_TAG)
+    assert sky.node_tree.get("atmos_features", "").endswith("+precise+ground")
+    image = bpy.data.images["Atmos Precise Table"]
+    assert all(n.image == image for n in sky.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    mix = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.MIX_TAG)
+    assert mix.inputs[1].links[0].from_node.get("atmos_tag") == world.BACKGROUND_TAG
+    lit = ru.render_to_array(scene)[..., :3].mean(axis=(0, 1))
+    lighting = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.LIGHTING_TAG)
+    empty = np.zeros((257, 3))
+    sky_lighting.write_sky_table(lighting.node_tree, np.linspace(0.0, 1.0, 257), (empty, empty, empty), "empty")
+    assert np.all(lit > 0.05)
+    np.testing.assert_allclose(ru.render_to_array(scene)[..., :3].mean(axis=(0, 1)), lit, rtol=1e-6)
+    scene.atmos.quality = "FAST"
+    assert mix.inputs[1].links[0].from_node.get("atmos_tag") == world.LIGHTING_BACKGROUND_TAG
+    assert sky.node_tree.get("atmos_features", "") == "rayleigh+mie+abs+ground"
+    assert "Atmos Precise Table" not in bpy.data.images
+    effect.disable_effect(scene)
+    assert not any(g.name.startswith("Atmos Sky") for g in bpy.data.node_groups)
 
 
 @pytest.fixture
