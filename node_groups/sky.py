@@ -140,9 +140,9 @@ def ground(g: GraphBuilder, below: Socket, sun_z: Socket, f_ex: Socket) -> Socke
 
 
 def sky_path_length(g: GraphBuilder, view_z: Socket) -> tuple[Socket, Socket, Socket]:
-    """(length m, 1 where the ray meets the ground, the distance to the top m) from the Precise tile's camera along a ray with zenith cosine
-    ``view_z``: to the ground, else to the top of the atmosphere; ``physics.precise.sky_path_length`` node for node
-    (its docstring has the cancellation-free forms)."""
+    """(length m, 1 where the ray meets the ground, the distance to the top m) from the Precise tile's camera
+    along a ray with zenith cosine ``view_z``: to the ground, else to the top of the atmosphere;
+    ``physics.precise.sky_path_length`` node for node (its docstring has the cancellation-free forms)."""
     h_c, top, radius = tile_camera(g)
     r_c_c = g.mul(g.add(radius, h_c, label="r_c"), view_z, label="r_c c")
     ground_term = g.mul(h_c, g.add(g.mul(radius, 2.0, label="2 R"), h_c), label="G = h_c (2 R + h_c)")

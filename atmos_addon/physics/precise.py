@@ -471,8 +471,8 @@ def sky_from_tile(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmo
     atmosphere, or the ground where the ray meets it: :func:`evaluate` at the :func:`sky_path_length`. So a far
     surface's in-scattering (the aerial perspective at the Precise level) tends to exactly the sky behind it as
     its distance reaches the path's: the same table cells, the same arithmetic. The row is the top's or the
-    ground's (row 0) exactly, not the one the target altitude's float32 cube root gives. What the "Atmos Sky" world group
-    evaluates at the Precise level (without the sun's disk and the lit ground, which it adds as the dome sky
+    ground's (row 0) exactly, not the one the target altitude's float32 cube root gives. What the "Atmos Sky" world
+    group evaluates at the Precise level (without the sun's disk and the lit ground, which it adds as the dome sky
     does). Against the brute-force :func:`sky_radiance` (the tests): about 1 % mean.
     """
     dt = np.dtype(dtype).type
