@@ -165,15 +165,33 @@ def ensure_radiance_output(tree: bpy.types.ShaderNodeTree, description: str) -> 
         socket.description = description
 
 
-def build_sky(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
-    """Clear ``tree``'s nodes and build the sky graph for ``features`` (interface kept)."""
+@dataclass(frozen=True)
+class SkyRay:
+    """The per-ray inputs every sky graph starts from: v, its z component, l and mu = v . l."""
+
+    view: Socket
+    view_z: Socket
+    sun: Socket
+    mu: Socket
+
+
+def start_radiance_graph(tree: bpy.types.ShaderNodeTree, description: str) -> tuple[GraphBuilder, SkyRay]:
+    """Clear ``tree``'s nodes (interface kept, the Radiance output described by ``description``) and start a sky
+    graph: the builder and the ray's inputs. :func:`finish_radiance_group` ends it."""
     tree.nodes.clear()
-    ensure_radiance_output(tree, "Sky radiance along the view ray (sky, sun disk, ground): feed a Background shader")
+    ensure_radiance_output(tree, description)
     g = GraphBuilder(tree)
     view = view_direction(g)
     _, _, view_z = g.separate(view, label="v")
     sun = sun_direction(g)
-    mu = cos_theta_to_sun(g, view, sun)
+    return g, SkyRay(view, view_z, sun, cos_theta_to_sun(g, view, sun))
+
+
+def build_sky(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
+    """Clear ``tree``'s nodes and build the sky graph for ``features`` (interface kept)."""
+    g, ray = start_radiance_graph(
+        tree, "Sky radiance along the view ray (sky, sun disk, ground): feed a Background shader")
+    view, view_z, sun, mu = ray.view, ray.view_z, ray.sun, ray.mu
     if features.level == "precise":
         length, below, to_top = sky_path_length(g, view_z)
         top_row = g.mul(g.sub(1.0, below), float(ALTITUDES - 1), label="row: the top, or 0 on the ground")

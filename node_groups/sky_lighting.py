@@ -33,9 +33,8 @@ import numpy as np
 
 from . import parameters
 from .aerial_perspective import phase_henyey_greenstein, phase_rayleigh
-from .dome import cos_theta_to_sun, sun_direction, view_direction
 from .graph import GraphBuilder, Socket
-from .sky import SkyFeatures, ensure_radiance_output, finish_radiance_group, ground, is_stamped
+from .sky import SkyFeatures, finish_radiance_group, ground, is_stamped, start_radiance_graph
 
 #: Name of a new lighting group (Blender numbers further copies: one per world).
 SKY_LIGHTING_GROUP_NAME = "Atmos Sky Lighting"
@@ -61,13 +60,8 @@ def table_lookup(g: GraphBuilder, u: Socket, name: str, *, label: str) -> Socket
 
 def build_sky_lighting(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
     """Clear ``tree``'s nodes and build the table sky for ``features`` (interface kept; the table is emptied)."""
-    tree.nodes.clear()
-    ensure_radiance_output(tree, "Sky radiance along the ray from the table (sky and ground, no sun disk)")
-    g = GraphBuilder(tree)
-    view = view_direction(g)
-    _, _, view_z = g.separate(view, label="v")
-    sun = sun_direction(g)
-    mu = cos_theta_to_sun(g, view, sun)
+    g, ray = start_radiance_graph(tree, "Sky radiance along the ray from the table (sky and ground, no sun disk)")
+    view_z, sun, mu = ray.view_z, ray.sun, ray.mu
     u = g.sqrt(g.max(view_z, 0.0), label="u = sqrt(max(v_z, 0))")
     light = g.scale(table_lookup(g, u, TABLE_NODES[0], label="A_R(u)"), phase_rayleigh(g, mu), label="A_R Phi_R")
     if features.mie:
