@@ -27,7 +27,7 @@ SAMPLE_SCENES = ("valley", "mars")
 ENGINES = ("cycles", "eevee")
 QUALITY_LEVELS = ("fast", "balanced", "precise", "auto")
 #: --mode values and the scene setting each selects (``scene.atmos.render_mode``).
-MODES = {"compositor": "COMPOSITOR", "in-render": "IN_RENDER"}
+MODES = {"compositor": "COMPOSITOR", "per-pixel": "PER_PIXEL", "in-render": "IN_RENDER"}
 EXIT_ERROR = 2
 
 
@@ -171,6 +171,9 @@ def _prepare_scene(args: argparse.Namespace, *, with_preset: bool = True):
         if mode == "in-render" and not in_render.supported():
             raise CliError("--mode in-render needs Blender 4.5 or newer (Cycles 4.2 loses indirect light inside "
                            "the haze domes); use --mode compositor")
+        if mode == "per-pixel" and getattr(args, "quality", None) in ("balanced", "precise"):
+            raise CliError(f"--mode per-pixel evaluates the Fast level; use --mode compositor for --quality "
+                           f"{args.quality}")
         overrides["render_mode"] = MODES[mode]
     if getattr(args, "quality", None) is not None:
         overrides["quality"] = args.quality.upper()
@@ -344,8 +347,10 @@ def _add_effect_options(parser: argparse.ArgumentParser, *, preset_required: boo
     parser.add_argument("--samples", type=_positive_int, help="render samples")
     parser.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
     parser.add_argument("--mode", choices=tuple(MODES),
-                        help="compositor (both engines: AOVs + compositor) or in-render (Cycles: exact per ray "
-                             "segment, reflections and refractions included); default: the scene's setting")
+                        help="compositor (both engines: AOVs + compositor), per-pixel (both engines: the Fast level "
+                             "evaluated once per pixel in the compositor, no per-sample cost) or in-render (Cycles: "
+                             "exact per ray segment, reflections and refractions included); default: the scene's "
+                             "setting")
     parser.add_argument("--quality", choices=QUALITY_LEVELS,
                         help="accuracy level: fast (constant density, Hoffman & Preetham 2002), balanced (density "
                              "falling with altitude along the curved ray: drones, aircraft, mountains), precise "

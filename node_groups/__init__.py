@@ -19,6 +19,7 @@ from .parameters import (AERIAL_PARAMETER_NAMES, PARAMETER_NAMES, clear_shader_p
 from .sky import (OUTPUT_RADIANCE, SKY_GROUP_NAME, SKY_GROUP_VERSION, SKY_NODE_COUNTS, SkyFeatures, build_sky,
                   ensure_sky_group)
 from . import sky_lighting  # noqa: F401  (node_groups.sky_lighting: the world's table sky for non-camera rays)
+from . import per_pixel  # noqa: F401  (node_groups.per_pixel: the Fast level evaluated per pixel in the compositor)
 
 __all__ = [
     "AERIAL_PARAMETER_NAMES",

@@ -275,3 +275,102 @@ class GraphBuilder:
     def max_depth(self) -> int:
         """The deepest column used so far."""
         return max(self._depth.values(), default=0)
+
+
+#: Math node of a compositor tree: Blender 5.0 shares the shader's, 4.2-4.5 have their own.
+_COMPOSITOR_GROUP_API = "compositing_node_group" in bpy.types.Scene.bl_rna.properties
+COMPOSITOR_MATH = "ShaderNodeMath" if _COMPOSITOR_GROUP_API else "CompositorNodeMath"
+COMPOSITOR_SEPARATE_XYZ = "ShaderNodeSeparateXYZ" if _COMPOSITOR_GROUP_API else "CompositorNodeSeparateXYZ"
+COMPOSITOR_VALUE = "ShaderNodeValue" if _COMPOSITOR_GROUP_API else "CompositorNodeValue"
+
+
+class ChannelGraphBuilder(GraphBuilder):
+    """The same arithmetic in a compositor tree, where a colour or vector is three scalar sockets.
+
+    Compositor trees have no Vector Math, Gamma or Attribute node in Blender 4.2, so every per-component
+    operation becomes one Math node per channel, and a colour is a 3-tuple of operands (sockets or numbers)
+    that :meth:`separate` and :meth:`combine` pass through without a node. Parameters come from a mapping
+    (name -> scalar socket or 3-tuple), normally a group's inputs, through :meth:`attribute`. The functions that
+    build the shader groups (``dome_distances``, ``scattering_terms``...) take either builder, so the compositor
+    evaluates the very equations the shaders do, channel by channel (Vector Math is exact per component, and
+    the Gamma node and Math Power compute the same powf).
+    """
+
+    def __init__(self, tree: bpy.types.NodeTree, parameters: dict[str, Operand]) -> None:
+        super().__init__(tree)
+        self.parameters = parameters
+
+    @staticmethod
+    def _channels(value: Operand) -> tuple:
+        return tuple(value) if _is_vector(value) else (value, value, value)
+
+    def _math(self, operation: str, *operands: Operand, label: str = "") -> Socket:
+        node = self.node(COMPOSITOR_MATH, operation=operation, use_clamp=False, label=label)
+        for socket, value in zip(node.inputs, operands):
+            self._feed(node, socket, value)
+        return node.outputs[0]
+
+    def _per_component(self, operation: str, *operands: Operand, label: str = "") -> tuple:
+        split = [self._channels(value) for value in operands]
+        return tuple(self._math(operation, *(parts[c] for parts in split), label=f"{label} {'RGB'[c]}" if label else "")
+                     for c in range(3))
+
+    def _arithmetic(self, operation: str, a: Operand, b: Operand, label: str):
+        if _is_vector(a) or _is_vector(b):
+            return self._per_component(operation, a, b, label=label)
+        return self._math(operation, a, b, label=label)
+
+    def scale(self, vector: Operand, factor: Operand, *, label: str = ""):
+        return self._per_component("MULTIPLY", vector, factor, label=label)
+
+    def neg(self, a: Operand, *, label: str = ""):
+        return self._arithmetic("MULTIPLY", a, -1.0, label)
+
+    def multiply_add(self, a: Operand, b: Operand, c: Operand, *, label: str = ""):
+        if any(_is_vector(v) for v in (a, b, c)):
+            return self._per_component("MULTIPLY_ADD", a, b, c, label=label)
+        return self._math("MULTIPLY_ADD", a, b, c, label=label)
+
+    def abs(self, a: Operand, *, label: str = ""):
+        if _is_vector(a):
+            return self._per_component("ABSOLUTE", a, label=label)
+        return self._math("ABSOLUTE", a, label=label)
+
+    def power_per_channel(self, colour: Operand, exponent: Operand, *, label: str = ""):
+        """colour^exponent per channel, Math Power (the bases the groups raise are positive)."""
+        return self._per_component("POWER", colour, exponent, label=label)
+
+    def dot(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        a, b = self._channels(a), self._channels(b)
+        partial = self._math("MULTIPLY", a[0], b[0])
+        partial = self._math("MULTIPLY_ADD", a[1], b[1], partial)
+        return self._math("MULTIPLY_ADD", a[2], b[2], partial, label=label)
+
+    def normalize(self, a: Operand, *, label: str = "") -> tuple:
+        """a / |a| (the zero vector stays zero: Blender's divide gives 0 where the length is 0)."""
+        length = self._math("SQRT", self.dot(a, a), label=f"|{label}|" if label else "")
+        return self._per_component("DIVIDE", a, length, label=label)
+
+    def mix(self, factor: Operand, a: Operand, b: Operand, *, label: str = ""):
+        """a + factor (b - a), per component if a or b is a colour."""
+        return self.multiply_add(factor, self.sub(b, a), a, label=label)
+
+    def const(self, value: float, *, label: str = "") -> Socket:
+        node = self.node(COMPOSITOR_VALUE, label=label)
+        node.outputs[0].default_value = float(value)
+        return node.outputs[0]
+
+    def separate(self, colour: Operand, *, label: str = "") -> tuple:
+        return self._channels(colour)
+
+    def combine(self, r: Operand, g: Operand, b: Operand, *, label: str = "") -> tuple:
+        return (r, g, b)
+
+    def per_channel(self, fn: Callable[..., Socket], *operands: Operand, label: str = "") -> tuple:
+        split = [self._channels(op) if _is_vector(op) else (op, op, op) for op in operands]
+        return tuple(fn(*(parts[c] for parts in split)) for c in range(3))
+
+    def attribute(self, name: str, *, attribute_type: str = "VIEW_LAYER", output: str = "Color",
+                  label: str = ""):
+        """The parameter ``name`` from the mapping given to the builder (a KeyError names a missing one)."""
+        return self.parameters[name]

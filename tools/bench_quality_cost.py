@@ -2,7 +2,7 @@
 """Render cost of each quality level on the sample valley: effect off, Fast, Balanced; Cycles and Eevee.
 
     .venv/bpy-5.0.1/bin/python tools/bench_quality_cost.py [--engines cycles,eevee] [--resolution 320x180]
-        [--samples 64] [--repeats 3]
+        [--samples 64] [--repeats 3] [--decompose] [--only off,fast-per-pixel-aerial-only,...]
 
 Method. The valley (``sample_scenes/valley.py``) is built once and rendered in Compositor mode (the mode both
 engines share) with ``api.enable(scene, preset, quality=...)``: "off" is the effect disabled (the valley's
@@ -17,12 +17,16 @@ same configuration.
 With ``--decompose`` two more configurations split Fast's cost: "fast-sky-only" (Fast enabled, then the
 compositing and the view layer's AOVs switched off, so Cycles drops the aerial nodes and only the Atmos sky
 remains) and "fast-aerial-only" (Fast enabled, then the world's output relinked to the world's own
-Background, so only the aerial group and its compositing remain).
+Background, so only the aerial group and its compositing remain). "fast-per-pixel" is Fast in Per Pixel mode (the
+materials write distance and view direction; the compositor evaluates the Fast level once per pixel; its node
+count is the compositor group's), and with ``--decompose`` "fast-per-pixel-aerial-only" is that mode without the
+Atmos sky, like "fast-aerial-only".
 "off-sky-texture" is the effect off with Blender's own Sky Texture (multiple scattering in 5.0, Nishita in 4.x,
 at the valley's sun) feeding the valley world's Background: what an artist would render without Atmos, whose sky
 replaces the world; the table gives the ratio to it as well as to the plain world's "off".
 The time is the wall time of ``bpy.ops.render.render`` (no file written). The table gives medians, the
-ratio to "off", every single time, and the node count of the aerial-perspective group. Not a test: nothing fails.
+ratio to "off" (and in brackets the median of each repeat's ratio to that repeat's "off", which the drift
+disturbs less), every single time, and the node count of the aerial-perspective group. Not a test: nothing fails.
 """
 
 from __future__ import annotations
@@ -48,7 +52,7 @@ from atmos_addon import api  # noqa: E402
 from atmos_addon.blender.materials import TAG  # noqa: E402  (the tag on nodes the add-on made)
 from sample_scenes import valley  # noqa: E402
 
-CONFIGS = ("off", "fast", "balanced", "precise")
+CONFIGS = ("off", "fast", "fast-per-pixel", "balanced", "precise")
 
 
 def eevee_engine_id() -> str:
@@ -78,7 +82,7 @@ def build(args: argparse.Namespace, engine: str):
 
 
 #: The configurations ``--decompose`` adds (see the module docstring).
-DECOMPOSED = ("fast-sky-only", "fast-aerial-only")
+DECOMPOSED = ("fast-sky-only", "fast-aerial-only", "fast-per-pixel-aerial-only")
 #: The effect off with Blender's own Sky Texture as the world: what an artist renders without Atmos.
 SKY_TEXTURE = "off-sky-texture"
 
@@ -109,18 +113,21 @@ def configure(scene, config: str, preset: str) -> int:
     if config.startswith("off"):
         return 0
     level = config.split("-")[0]
-    api.enable(scene, preset=preset, render_mode="COMPOSITOR", quality=level.upper())
+    per_pixel = "-per-pixel" in config
+    api.enable(scene, preset=preset, render_mode="PER_PIXEL" if per_pixel else "COMPOSITOR", quality=level.upper())
     if config == "fast-sky-only":
         scene.render.use_compositing = False
         for view_layer in scene.view_layers:
             for aov in list(view_layer.aovs):
                 view_layer.aovs.remove(aov)
         return 0
-    if config == "fast-aerial-only":
+    if config.endswith("aerial-only"):
         tree = scene.world.node_tree
         plain = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBackground" and TAG not in n.keys())
         for output in (n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld"):  # Atmos adds a Cycles one
             tree.links.new(plain.outputs["Background"], output.inputs["Surface"])
+    if per_pixel:   # no aerial node runs per sample: the compositor group's nodes, once per pixel
+        return len(bpy.data.node_groups["Atmos Aerial Composite (Per Pixel)"].nodes)
     return len(bpy.data.node_groups["Atmos Aerial Perspective"].nodes)
 
 
@@ -133,6 +140,11 @@ def timed_render(scene) -> float:
 def bench_engine(engine: str, args: argparse.Namespace) -> list[str]:
     scene = build(args, engine)
     configs = CONFIGS + (SKY_TEXTURE,) + (DECOMPOSED if args.decompose else ())
+    if args.only:
+        configs = tuple(args.only.split(","))
+        unknown = sorted(set(configs) - set(CONFIGS + (SKY_TEXTURE,) + DECOMPOSED))
+        if unknown or "off" not in configs:
+            raise SystemExit(f"--only: unknown configuration(s) {unknown}, or 'off' missing (the baseline)")
     nodes, first = {}, {}
     for config in configs:
         nodes[config] = configure(scene, config, args.preset)
@@ -149,12 +161,13 @@ def bench_engine(engine: str, args: argparse.Namespace) -> list[str]:
             print(f"{engine} repeat {repeat + 1}/{args.repeats} {config}: {times[config][-1]:.2f} s", flush=True)
     api.disable(scene)
     base = statistics.median(times["off"])
-    sky_base = statistics.median(times[SKY_TEXTURE])
+    sky_base = statistics.median(times[SKY_TEXTURE]) if SKY_TEXTURE in times else None
     rows = []
     for config in configs:
         median = statistics.median(times[config])
-        rows.append(f"| {engine} | {config} | {nodes[config]} | {median:.2f} s | {median / base:.2f} | "
-                    f"{median / sky_base:.2f} | "
+        paired = statistics.median(t / off for t, off in zip(times[config], times["off"]))
+        rows.append(f"| {engine} | {config} | {nodes[config]} | {median:.2f} s | {median / base:.2f} "
+                    f"({paired:.2f}) | {'-' if sky_base is None else f'{median / sky_base:.2f}'} | "
                     f"{first[config]:.2f} s | " + ", ".join(f"{t:.2f}" for t in times[config]) + " s |")
     return rows
 
@@ -168,6 +181,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threads", type=int, default=2, help="render threads")
     parser.add_argument("--preset", default="clear")
     parser.add_argument("--decompose", action="store_true", help="also time Fast's sky alone and aerial alone")
+    parser.add_argument("--only", help="comma-separated configurations to time instead (must include 'off'), e.g. "
+                                       "off,fast-per-pixel-aerial-only,fast-aerial-only")
     args = parser.parse_args(argv)
     atmos_addon.register()
     load_before = " / ".join(f"{v:.1f}" for v in os.getloadavg())
@@ -179,7 +194,8 @@ def main(argv: list[str] | None = None) -> int:
           f"preset '{args.preset}', {args.threads} threads; {os.cpu_count()} CPU cores (nproc), {cpu_model()}, "
           f"{platform.system()} {platform.release()}; load average before {load_before}, after "
           f"{' / '.join(f'{v:.1f}' for v in os.getloadavg())}\n")
-    print("| engine | level | aerial nodes | median render | ratio to off | ratio to off with Blender's Sky Texture "
+    print("| engine | level | aerial nodes | median render | ratio to off (median of the per-repeat ratios) "
+          "| ratio to off with Blender's Sky Texture "
           "| first render (shader compile) | single renders |")
     print("|---|---|---:|---:|---:|---:|---:|---|")
     print("\n".join(rows))

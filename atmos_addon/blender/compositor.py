@@ -14,6 +14,10 @@ Per pixel the materials leave three AOV sums (see :mod:`.materials`): ``T = sum 
   part gets its atmosphere (first order: the sky's share of the pixel is scaled by T as well);
 - a pixel where a cut-out and the surface behind it both wrote (C > 1): a coverage-weighted mean.
 
+Per Pixel evaluation (``render_mode`` "PER_PIXEL") inserts ``node_groups.per_pixel``'s group instead: the
+materials write the coverage, distance and view direction, and the compositor evaluates T and L from them
+once per pixel before the same combination. Its parameter inputs are driven from the scene's properties.
+
 The node tree is inserted non-destructively: the links that left Render Layers.Image are moved to
 leave our group's output; removing the group puts them back. What must be restored (the previous
 ``use_nodes`` / ``compositing_node_group`` / ``use_compositing`` and which nodes and AOVs we created)
@@ -28,7 +32,8 @@ import warnings
 
 import bpy
 
-from .materials import AOV_COVERAGE, AOV_INSCATTERING, AOV_TRANSMITTANCE, TAG
+from .. import import_sibling
+from .materials import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_TRANSMITTANCE, AOV_VIEW, TAG
 
 GROUP_NAME = "Atmos Aerial Composite"
 GROUP_VERSION = 1
@@ -37,6 +42,10 @@ STATE_KEY = "atmos_compositor"
 COMPOSITE_NODE = "Atmos Aerial Composite"
 CREATED_TREE_NAME = "Atmos Compositor"
 AOVS = ((AOV_TRANSMITTANCE, "COLOR"), (AOV_INSCATTERING, "COLOR"), (AOV_COVERAGE, "VALUE"))
+#: The Per Pixel mode's AOVs (``node_groups.per_pixel``): the atmosphere is evaluated in the compositor.
+PER_PIXEL_AOVS = ((AOV_COVERAGE, "VALUE"), (AOV_DISTANCE, "VALUE"), (AOV_VIEW, "COLOR"))
+#: How the compositor applies the effect: "COMPOSITOR" (per-sample AOVs combined) or "PER_PIXEL" (evaluated here).
+EVALUATIONS = ("COMPOSITOR", "PER_PIXEL")
 
 #: Blender 5.0 replaced scene.node_tree / use_nodes by scene.compositing_node_group.
 GROUP_API = "compositing_node_group" in bpy.types.Scene.bl_rna.properties
@@ -138,12 +147,12 @@ def ensure_composite_group():
 # -- view layer AOVs ---------------------------------------------------------------------------
 
 
-def declare_aovs(scene, state: dict) -> None:
-    """Add the Atmos AOVs to every view layer that lacks them; remember which we added."""
+def declare_aovs(scene, state: dict, aovs=AOVS) -> None:
+    """Add the Atmos ``aovs`` to every view layer that lacks them; remember which we added."""
     added = list(state.get("added_aovs", []))
     for layer in scene.view_layers:
         existing = {aov.name for aov in layer.aovs}
-        for name, kind in AOVS:
+        for name, kind in aovs:
             if name not in existing:
                 aov = layer.aovs.add()
                 aov.name = name
@@ -221,18 +230,81 @@ def _render_layer_nodes(tree, scene) -> list:
     ]
 
 
-def install(scene) -> list[str]:
-    """Declare the AOVs and insert the combining group after every Render Layers node of the scene."""
+def installed_evaluation(scene) -> str | None:
+    """The evaluation (one of :data:`EVALUATIONS`) installed in ``scene``'s compositor, None when not installed."""
+    if STATE_KEY not in scene or not _installed_nodes(scene):
+        return None
+    return str(scene[STATE_KEY].get("evaluation", "COMPOSITOR"))
+
+
+def ensure_per_pixel_group(features):
+    """The per-pixel compositor group for the aerial ``features`` (Fast level), around the combining group."""
+    return import_sibling("node_groups").per_pixel.ensure_per_pixel_group(features, ensure_composite_group())
+
+
+def _drive_parameters(node, scene) -> None:
+    """Drive the per-pixel group node's parameter inputs from ``scene``'s Atmos custom properties.
+
+    Single-property drivers (type Average of one variable): Blender evaluates them without Python, so a farm
+    machine without the add-on, or a file opened with scripts disabled, renders the keyed parameters.
+    """
+    tree = node.id_data
+    for name, socket_name, size in import_sibling("node_groups").per_pixel.PARAMETER_SOCKETS:
+        socket = node.inputs[socket_name]
+        for index in range(size):
+            curve = socket.driver_add("default_value", index) if size > 1 else socket.driver_add("default_value")
+            for modifier in list(curve.modifiers):
+                curve.modifiers.remove(modifier)
+            while curve.keyframe_points:   # a driver F-curve with points maps the driver's value through them
+                curve.keyframe_points.remove(curve.keyframe_points[0], fast=True)
+            driver = curve.driver
+            driver.type = "AVERAGE"
+            while driver.variables:
+                driver.variables.remove(driver.variables[0])
+            variable = driver.variables.new()
+            variable.type = "SINGLE_PROP"
+            variable.targets[0].id_type = "SCENE"
+            variable.targets[0].id = scene
+            variable.targets[0].data_path = f'["{name}"][{index}]' if size > 1 else f'["{name}"]'
+    tree.update_tag()
+
+
+def _remove_drivers(node) -> None:
+    """Remove the drivers :func:`_drive_parameters` put on ``node`` (and nothing else of the tree's animation)."""
+    animation = node.id_data.animation_data
+    if animation is None:
+        return
+    prefix = f'nodes["{node.name}"].inputs['
+    for curve in [c for c in animation.drivers if c.data_path.startswith(prefix)]:
+        animation.drivers.remove(curve)
+
+
+def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str]:
+    """Declare the AOVs and insert the combining group after every Render Layers node of the scene.
+
+    ``evaluation`` "PER_PIXEL" declares the per-pixel AOVs and inserts the per-pixel group for the aerial
+    ``features`` instead (its parameters driven from the scene). Installing one evaluation over the other
+    replaces it.
+    """
+    if evaluation not in EVALUATIONS:
+        raise ValueError(f"evaluation must be one of {EVALUATIONS}; got {evaluation!r}")
     messages: list[str] = []
-    state = scene[STATE_KEY].to_dict() if STATE_KEY in scene else None
-    if state is not None and _installed_nodes(scene):
+    installed = installed_evaluation(scene)
+    if installed == evaluation:
+        if evaluation == "PER_PIXEL":
+            ensure_per_pixel_group(features)
         return messages  # already installed: idempotent
-    state = state or {}
+    if installed is not None:
+        uninstall(scene)
+    state = scene[STATE_KEY].to_dict() if STATE_KEY in scene else {}
     state.setdefault("use_compositing", bool(scene.render.use_compositing))
     state.setdefault("viewer_images", _viewer_images())
-    declare_aovs(scene, state)
-    group = ensure_composite_group()
+    state["evaluation"] = evaluation
+    per_pixel = evaluation == "PER_PIXEL"
+    declare_aovs(scene, state, PER_PIXEL_AOVS if per_pixel else AOVS)
+    group = ensure_per_pixel_group(features) if per_pixel else ensure_composite_group()
     tree = _scene_tree(scene, state)
+    state.setdefault("created_animation_data", tree.animation_data is None)
     final_input = _output_input(tree, state)
     layers = _render_layer_nodes(tree, scene)
     if not layers:
@@ -253,11 +325,13 @@ def install(scene) -> list[str]:
             tree.links.remove(link)
         tree.links.new(image, combine.inputs["Image"])
         missing = []
-        for aov_name, socket_name in (
-            (AOV_TRANSMITTANCE, "Transmittance"),
-            (AOV_INSCATTERING, "Inscattering"),
-            (AOV_COVERAGE, "Coverage"),
-        ):
+        sources = (((AOV_COVERAGE, "Coverage"), (AOV_DISTANCE, "Distance"), (AOV_VIEW, "View")) if per_pixel else
+                   ((AOV_TRANSMITTANCE, "Transmittance"), (AOV_INSCATTERING, "Inscattering"),
+                    (AOV_COVERAGE, "Coverage")))
+        if per_pixel:
+            combine.label = "Atmos: aerial perspective (per pixel)"
+            _drive_parameters(combine, scene)
+        for aov_name, socket_name in sources:
             source = layer_node.outputs.get(aov_name)
             if source is None:
                 missing.append(aov_name)
@@ -305,6 +379,7 @@ def uninstall(scene) -> None:
     tree = _current_tree(scene)
     if tree is not None:
         for node in [n for n in tree.nodes if n.get(TAG) and n.name.startswith(COMPOSITE_NODE)]:
+            _remove_drivers(node)
             image_in = node.inputs["Image"]
             source = image_in.links[0].from_socket if image_in.is_linked else None
             targets = [link.to_socket for link in node.outputs["Image"].links]
@@ -315,6 +390,10 @@ def uninstall(scene) -> None:
                         tree.links.new(source, target)
         for node in [n for n in tree.nodes if n.get(TAG)]:
             tree.nodes.remove(node)
+        animation = tree.animation_data
+        if animation is not None and state.get("created_animation_data") and not animation.drivers \
+                and animation.action is None:
+            tree.animation_data_clear()
         if GROUP_API:
             if state.get("added_output_socket"):
                 for item in list(tree.interface.items_tree):
@@ -334,6 +413,9 @@ def uninstall(scene) -> None:
         scene.render.use_compositing = bool(state["use_compositing"])
     if STATE_KEY in scene:
         del scene[STATE_KEY]
+    per_pixel_group = bpy.data.node_groups.get(import_sibling("node_groups").per_pixel.GROUP_NAME)
+    if per_pixel_group is not None and per_pixel_group.users == 0:
+        bpy.data.node_groups.remove(per_pixel_group)
     group = bpy.data.node_groups.get(GROUP_NAME)
     if group is not None and group.users == 0:
         bpy.data.node_groups.remove(group)

@@ -64,11 +64,22 @@ def _status(scene, report: Report) -> None:
         item.reason = reason
 
 
+def _evaluations_in_use(scene) -> tuple[str, ...]:
+    """The compositor evaluations ("COMPOSITOR", "PER_PIXEL") of ``scene`` and the file's other enabled scenes:
+    the shared surface group holds the AOV outputs of each (:func:`.materials.ensure_surface_group`)."""
+    modes = {in_render.effective_mode(scene)}
+    for other in bpy.data.scenes:
+        if other != scene and getattr(other, "atmos", None) is not None and other.atmos.enabled:
+            modes.add(in_render.effective_mode(other))
+    return tuple(sorted(modes - {"IN_RENDER"})) or ("COMPOSITOR",)
+
+
 def _apply_materials(scene, *, only_new: bool) -> Report:
     if in_render.effective_mode(scene) == "IN_RENDER":
         result = in_render.inject_scene(scene, sync.ensure_group(scene), only_new=only_new)
     else:
-        result = materials.inject_scene(scene, sync.ensure_group(scene), only_new=only_new)
+        result = materials.inject_scene(scene, sync.ensure_group(scene), only_new=only_new,
+                                        evaluations=_evaluations_in_use(scene))
     report = Report(
         managed=result.managed,
         skipped=result.skipped,
@@ -86,7 +97,8 @@ def _apply_materials(scene, *, only_new: bool) -> Report:
 
 
 def mode_mismatch(scene) -> bool:
-    """True when the effect is on in one mode (Compositor / In-Render) and the scene now asks for the other."""
+    """True when the effect is on in one mode (Compositor or Per Pixel / In-Render) and the scene now asks for the
+    other (Compositor and Per Pixel share the materials' nodes: :func:`.compositor.install` swaps those two)."""
     return scene.atmos.enabled and in_render.is_installed(scene) != (in_render.effective_mode(scene) == "IN_RENDER")
 
 
@@ -106,7 +118,9 @@ def enable_effect(scene) -> Report:
     quality_choice.resolve(scene)
     report = _apply_materials(scene, only_new=True)
     if not in_render_mode:
-        report.messages.extend(compositor.install(scene))
+        per_pixel = in_render.effective_mode(scene) == "PER_PIXEL"
+        report.messages.extend(compositor.install(scene, evaluation="PER_PIXEL" if per_pixel else "COMPOSITOR",
+                                                  features=sync.features_from_settings(scene.atmos)))
     if scene.atmos.drive_sun_lamp:
         _, lamp_message = sun_lamp.ensure_sun_lamp(scene)
         report.messages.append(lamp_message)

@@ -53,7 +53,7 @@ CLIP_MARGIN = 1.05
 #: Russian-roulette threshold are raised by this much while In-Render mode is installed (restored on removal),
 #: so the domes neither cut paths short nor add noise.
 DOME_CROSSINGS = 4
-MODES = ("COMPOSITOR", "IN_RENDER")
+MODES = ("COMPOSITOR", "PER_PIXEL", "IN_RENDER")
 
 
 def _groups():
@@ -83,8 +83,11 @@ def unavailable_reason(scene) -> str | None:
 
 
 def effective_mode(scene) -> str:
-    """"IN_RENDER" when the scene asks for it, renders with Cycles and Blender supports it; else "COMPOSITOR"."""
+    """"IN_RENDER" when the scene asks for it, renders with Cycles and Blender supports it; "PER_PIXEL" when the
+    scene asks for it (both engines, every version); else "COMPOSITOR"."""
     wanted = getattr(scene.atmos, "render_mode", "COMPOSITOR")
+    if wanted == "PER_PIXEL":
+        return wanted
     return "IN_RENDER" if wanted == "IN_RENDER" and unavailable_reason(scene) is None else "COMPOSITOR"
 
 

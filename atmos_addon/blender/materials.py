@@ -6,7 +6,11 @@ AOVs", custom property ``atmos_tag``) instancing the shared group "Atmos Surface
 
 - the "Atmos Aerial Perspective" group (outputs Transmittance and Inscattering),
 - AOV Outputs ``atmos_transmittance`` and ``atmos_inscattering`` (colour) and ``atmos_coverage``
-  (value), each weighted by the surface's opacity alpha = Opacity * (1 - Transparency).
+  (value), each weighted by the surface's opacity alpha = Opacity * (1 - Transparency);
+- for the Per Pixel mode, AOV Outputs ``atmos_distance`` (alpha times the camera distance in km) and
+  ``atmos_view`` (alpha times the unit view direction) instead of the first two and the aerial group. The group
+  holds the outputs of the modes the file's enabled scenes use (both when scenes differ); switching the mode
+  rebuilds it in place, so the materials are not edited.
 
 Where the surface has an alpha path (Principled BSDF Alpha, or a Mix Shader with a Transparent BSDF
 on one side) that socket is linked to the group's Opacity (or Transparency) input. Weighting by
@@ -37,11 +41,19 @@ PREFIX = "Atmos "
 AOV_TRANSMITTANCE = "atmos_transmittance"
 AOV_INSCATTERING = "atmos_inscattering"
 AOV_COVERAGE = "atmos_coverage"
+#: The Per Pixel mode's AOVs (:mod:`node_groups.per_pixel`): alpha s / 1000 (s in m) and alpha v.
+AOV_DISTANCE = "atmos_distance"
+AOV_VIEW = "atmos_view"
+DISTANCE_AOV_UNIT_M = 1000.0
+#: The scene custom property holding metres per scene unit (``node_groups.parameters.METRES_PER_UNIT``).
+METRES_PER_UNIT = "atmos_metres_per_unit"
 
 #: The one group node each managed material gets, and the group it instances.
 SURFACE_GROUP = "Atmos Surface AOVs"
-SURFACE_GROUP_VERSION = 1
+SURFACE_GROUP_VERSION = 2  # 2: the Per Pixel mode's distance and view outputs
 VERSION_KEY = "atmos_version"
+#: The evaluations whose outputs the surface group holds, e.g. "COMPOSITOR" or "COMPOSITOR,PER_PIXEL".
+EVALUATIONS_KEY = "atmos_evaluations"
 NODE_LABEL = "Atmos Surface AOVs"
 #: Above this many materials per pass, the surface group is emptied while materials are edited (see inject_scene).
 BULK_THRESHOLD = 16
@@ -160,8 +172,13 @@ def _surface_group_interface(tree) -> None:
     transparency.default_value, transparency.min_value, transparency.max_value = 0.0, 0.0, 1.0
 
 
-def _populate_surface_group(tree, aerial_group) -> None:
-    """Aerial group -> opacity weights -> AOV outputs; alpha = Opacity * (1 - Transparency)."""
+def _populate_surface_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None:
+    """Aerial group -> opacity weights -> AOV outputs; alpha = Opacity * (1 - Transparency).
+
+    Only the outputs of the ``evaluations`` in use ("COMPOSITOR": the aerial group and the transmittance and
+    in-scattering AOVs; "PER_PIXEL": the distance and view AOVs) are built: Eevee compiles every AOV output
+    of a material, declared or not (a group holding both took Eevee 417 s to compile where one took 2 s).
+    """
     nodes, links = tree.nodes, tree.links
     nodes.clear()
     group_in = nodes.new("NodeGroupInput")
@@ -180,9 +197,11 @@ def _populate_surface_group(tree, aerial_group) -> None:
     alpha.location = (-50, -250)
     links.new(group_in.outputs["Opacity"], alpha.inputs[0])
     links.new(one_minus.outputs[0], alpha.inputs[1])
-    for index, (output, aov_name) in enumerate(
-        (("Transmittance", AOV_TRANSMITTANCE), ("Inscattering", AOV_INSCATTERING))
-    ):
+    per_sample = (("Transmittance", AOV_TRANSMITTANCE), ("Inscattering", AOV_INSCATTERING))
+    if "COMPOSITOR" not in evaluations:
+        nodes.remove(aerial)
+        per_sample = ()
+    for index, (output, aov_name) in enumerate(per_sample):
         scale = nodes.new("ShaderNodeVectorMath")
         scale.operation = "SCALE"
         scale.location = (150, -180.0 * index)
@@ -196,18 +215,69 @@ def _populate_surface_group(tree, aerial_group) -> None:
     coverage.aov_name = AOV_COVERAGE
     coverage.location = (400, -400)
     links.new(alpha.outputs[0], coverage.inputs["Value"])
+    if "PER_PIXEL" in evaluations:
+        _add_per_pixel_outputs(nodes, links, alpha.outputs[0])
     tree[VERSION_KEY] = SURFACE_GROUP_VERSION
+    tree[EVALUATIONS_KEY] = ",".join(sorted(evaluations))
 
 
-def _is_populated(tree, aerial_group) -> bool:
+def _add_per_pixel_outputs(nodes, links, alpha) -> None:
+    """The Per Pixel mode's AOVs: alpha s / 1000 (s the camera distance in m) and alpha v (v the view direction)."""
+    camera = nodes.new("ShaderNodeCameraData")
+    camera.location = (-500, -550)
+    metres = nodes.new("ShaderNodeAttribute")
+    metres.attribute_type = "VIEW_LAYER"
+    metres.attribute_name = METRES_PER_UNIT
+    metres.location = (-500, -700)
+    unit = nodes.new("ShaderNodeMath")
+    unit.operation = "MULTIPLY"
+    unit.inputs[1].default_value = 1.0 / DISTANCE_AOV_UNIT_M
+    unit.location = (-250, -650)
+    links.new(metres.outputs["Fac"], unit.inputs[0])
+    weight = nodes.new("ShaderNodeMath")
+    weight.operation = "MULTIPLY"
+    weight.location = (-50, -600)
+    links.new(alpha, weight.inputs[0])
+    links.new(unit.outputs[0], weight.inputs[1])
+    distance = nodes.new("ShaderNodeMath")
+    distance.operation = "MULTIPLY"
+    distance.location = (150, -560)
+    links.new(camera.outputs["View Distance"], distance.inputs[0])
+    links.new(weight.outputs[0], distance.inputs[1])
+    distance_aov = nodes.new("ShaderNodeOutputAOV")
+    distance_aov.aov_name = AOV_DISTANCE
+    distance_aov.location = (400, -560)
+    links.new(distance.outputs[0], distance_aov.inputs["Value"])
+    geometry = nodes.new("ShaderNodeNewGeometry")
+    geometry.location = (-500, -850)
+    toward = nodes.new("ShaderNodeMath")
+    toward.operation = "MULTIPLY"
+    toward.inputs[1].default_value = -1.0
+    toward.location = (-50, -800)
+    links.new(alpha, toward.inputs[0])
+    view = nodes.new("ShaderNodeVectorMath")
+    view.operation = "SCALE"
+    view.location = (150, -760)
+    links.new(geometry.outputs["Incoming"], view.inputs[0])
+    links.new(toward.outputs[0], view.inputs["Scale"])
+    view_aov = nodes.new("ShaderNodeOutputAOV")
+    view_aov.aov_name = AOV_VIEW
+    view_aov.location = (400, -760)
+    links.new(view.outputs[0], view_aov.inputs["Color"])
+
+
+def _is_populated(tree, aerial_group, evaluations) -> bool:
     return (
         tree.get(VERSION_KEY) == SURFACE_GROUP_VERSION
-        and any(n.bl_idname == "ShaderNodeGroup" and n.node_tree == aerial_group for n in tree.nodes)
+        and tree.get(EVALUATIONS_KEY) == ",".join(sorted(evaluations))
+        and ("COMPOSITOR" not in evaluations
+             or any(n.bl_idname == "ShaderNodeGroup" and n.node_tree == aerial_group for n in tree.nodes))
     )
 
 
-def ensure_surface_group(aerial_group):
-    """Get or create the "Atmos Surface AOVs" shader group around ``aerial_group`` (rebuilt in place when stale)."""
+def ensure_surface_group(aerial_group, evaluations=("COMPOSITOR",)):
+    """Get or create the "Atmos Surface AOVs" shader group around ``aerial_group`` with the outputs of the
+    ``evaluations`` in use (rebuilt in place when stale: the materials' group nodes keep pointing at it)."""
     tree = bpy.data.node_groups.get(SURFACE_GROUP)
     if tree is not None and tree.bl_idname != "ShaderNodeTree":
         tree.name = SURFACE_GROUP + " (not Atmos)"
@@ -216,8 +286,8 @@ def ensure_surface_group(aerial_group):
         tree = bpy.data.node_groups.new(SURFACE_GROUP, "ShaderNodeTree")
     if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
         _surface_group_interface(tree)
-    if not _is_populated(tree, aerial_group):
-        _populate_surface_group(tree, aerial_group)
+    if not _is_populated(tree, aerial_group, evaluations):
+        _populate_surface_group(tree, aerial_group, evaluations)
     return tree
 
 
@@ -293,8 +363,11 @@ def remove(material) -> bool:
     return True
 
 
-def inject_scene(scene, aerial_group, *, only_new: bool = False) -> MaterialReport:
-    """Inject every material used by the scene's objects, each once; report the skipped ones and why."""
+def inject_scene(scene, aerial_group, *, only_new: bool = False, evaluations=("COMPOSITOR",)) -> MaterialReport:
+    """Inject every material used by the scene's objects, each once; report the skipped ones and why.
+
+    ``evaluations``: the compositor evaluations the file's enabled scenes use (see :func:`ensure_surface_group`).
+    """
     report = MaterialReport()
     materials, report.objects_without_material = scene_materials(scene)
     todo = []
@@ -308,7 +381,7 @@ def inject_scene(scene, aerial_group, *, only_new: bool = False) -> MaterialRepo
             todo.append(material)
     if not todo and bpy.data.node_groups.get(SURFACE_GROUP) is None:
         return report  # nothing to inject: no group with zero users left in the file
-    surface_group = ensure_surface_group(aerial_group)
+    surface_group = ensure_surface_group(aerial_group, evaluations)
     target = _stand_in() if len(todo) > BULK_THRESHOLD else surface_group
     for material in todo:
         inject(material, target)

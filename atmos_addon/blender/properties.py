@@ -367,6 +367,10 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
              "Both engines: the materials write AOVs and the compositor applies the haze once per pixel, to the "
              "first surface the camera sees (reflections and refractions are not hazed; silhouettes get a "
              "one-pixel fringe)"),
+            ("PER_PIXEL", "Per Pixel",
+             "Both engines, fastest: the materials write the distance and view direction, and the compositor "
+             "evaluates the Fast level once per pixel (no per-sample cost; at silhouettes the haze of the mean "
+             "distance). Balanced and Precise need the Compositor mode"),
             ("IN_RENDER", "In-Render (Cycles)",
              "Cycles: exact haze on every ray segment (reflections, refractions, depth of field, motion blur, "
              "silhouettes), no added noise. Eevee renders with the Compositor mode"),

@@ -42,15 +42,16 @@ def node_groups():
 
 def features_from_settings(settings):
     """The node-group feature set the settings need (Mie and absorption terms only when non-zero) and the quality
-    level (:func:`.quality_choice.level_of`; In-Render mode evaluates ray segments with the Fast level)."""
+    level (:func:`.quality_choice.level_of`; In-Render mode evaluates ray segments with the Fast level, Per Pixel
+    mode the pixels)."""
     from . import in_render, quality_choice
 
     aerial = node_groups().aerial_perspective
-    in_render_mode = in_render.effective_mode(settings.id_data) == "IN_RENDER"
+    fast_only = in_render.effective_mode(settings.id_data) in ("IN_RENDER", "PER_PIXEL")
     return aerial.AerialFeatures(
         mie=any(v > 0.0 for v in settings.mie_scattering_per_km),
         absorption=any(v > 0.0 for v in settings.mie_absorption_per_km),
-        level="fast" if in_render_mode else quality_choice.level_of(settings),
+        level="fast" if fast_only else quality_choice.level_of(settings),
     )
 
 
@@ -97,16 +98,24 @@ def _set_if_changed(settings, name: str, value: str) -> None:
 
 def ensure_group(scene):
     """Get or (re)build the group the scene's materials use, for its feature set and mode: the aerial
-    perspective group (Compositor mode) or the "Atmos In-Render Surface" group (In-Render mode)."""
+    perspective group (Compositor and Per Pixel modes; Per Pixel also gets its compositor group) or the "Atmos
+    In-Render Surface" group (In-Render mode)."""
     from . import in_render
 
     aerial = node_groups().aerial_perspective
     features = features_from_settings(scene.atmos)
-    if in_render.effective_mode(scene) == "IN_RENDER":
+    mode = in_render.effective_mode(scene)
+    if mode == "IN_RENDER":
         group = node_groups().in_render.ensure_surface_group(features)
     else:
         group = aerial.ensure_aerial_perspective_group(features)
-    _set_if_changed(scene.atmos, "status_built", aerial.describe_features(features))
+    built = aerial.describe_features(features)
+    if mode == "PER_PIXEL":
+        from . import compositor
+
+        per_pixel = compositor.ensure_per_pixel_group(features)
+        built = f"{built.split(':')[0]}, per pixel: {len(per_pixel.nodes)} compositor nodes"
+    _set_if_changed(scene.atmos, "status_built", built)
     return group
 
 

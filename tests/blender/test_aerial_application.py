@@ -399,6 +399,91 @@ def test_cutout_does_not_catch_its_own_atmosphere_in_cycles(kind: str, tmp_path:
 # -- the Balanced quality level, end to end ----------------------------------------------------------------
 
 
+@pytest.mark.parametrize("engine, tolerance", [("CYCLES", 2e-3), (EEVEE, 1e-2)])
+def test_per_pixel_mode_composites_the_physics(engine: str, tolerance: float, tmp_path: Path) -> None:
+    """Per Pixel mode: the compositor evaluates the Fast level from the distance and view AOVs, and the pixels are
+    the physics core's L0 F_ex + L_in (sun high and low), the sky untouched, the parameters driven live."""
+    scene, sun = _render_scene(engine)
+    for name, radiance, distance, column, row in PLANES:
+        _emissive_plane(name, radiance, distance, column, row)
+    scene.atmos.sky_enabled = False
+    scene.atmos.quality = "BALANCED"   # Per Pixel applies Fast whatever the level, and says so
+    scene.atmos.render_mode = "PER_PIXEL"
+    effect.enable_effect(scene)
+    assert "Per Pixel mode applies Fast" in scene.atmos.status_quality
+    assert "per pixel" in scene.atmos.status_built
+    layer_aovs = {aov.name for aov in scene.view_layers[0].aovs}
+    assert layer_aovs == {"atmos_coverage", "atmos_distance", "atmos_view"}
+    for label, rotation in (("high", (math.radians(30), 0, math.radians(40))), ("low", (math.radians(80), 0, 2.5))):
+        sun.rotation_euler = rotation
+        bpy.context.view_layer.update()
+        pixels = _render(scene, tmp_path, f"{engine}_per_pixel_{label}")
+        for name, radiance, distance, column, row in PLANES:
+            expected = _expected(scene, radiance, distance, column, row)
+            got = pixels[row, column]
+            print(f"per pixel {engine} sun={label} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
+            assert np.allclose(got, expected, rtol=tolerance, atol=0), (engine, label, name, got, expected)
+        np.testing.assert_allclose(pixels[SKY_PIXEL[1], SKY_PIXEL[0]], WORLD_COLOUR, rtol=2e-3)
+
+
+def test_per_pixel_names_agree_between_the_materials_and_the_compositor_group() -> None:
+    from node_groups import parameters, per_pixel
+
+    assert (materials.AOV_DISTANCE, materials.AOV_VIEW) == (per_pixel.AOV_DISTANCE, per_pixel.AOV_VIEW)
+    assert materials.DISTANCE_AOV_UNIT_M == per_pixel.DISTANCE_AOV_UNIT_M
+    assert materials.METRES_PER_UNIT == parameters.METRES_PER_UNIT
+    assert [aov for _, aov, _ in per_pixel.IMAGE_INPUTS[1:]] == [name for name, _ in compositor.PER_PIXEL_AOVS]
+
+
+def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() -> None:
+    """Compositor <-> Per Pixel swaps the AOVs and the inserted group without touching the materials; disabling
+    removes the drivers, the groups and the AOVs."""
+    scene = bpy.context.scene
+    user = user_material()
+    mesh_object("Thing", user)
+    before = _compositor_state(scene)
+    effect.enable_effect(scene)
+    material_nodes = snapshot(user.node_tree)
+    scene.atmos.render_mode = "PER_PIXEL"   # the update callback re-enables
+    tree = compositor._current_tree(scene)
+    node = tree.nodes[compositor.COMPOSITE_NODE]
+    assert node.node_tree.name == "Atmos Aerial Composite (Per Pixel)"
+    assert compositor.installed_evaluation(scene) == "PER_PIXEL"
+    drivers = [curve for curve in tree.animation_data.drivers if curve.data_path.startswith('nodes["Atmos Aerial')]
+    assert len(drivers) == 3 * 7 + 1
+    assert snapshot(user.node_tree) == material_nodes
+    assert {aov.name for aov in scene.view_layers[0].aovs} == {"atmos_coverage", "atmos_distance", "atmos_view"}
+    surface = bpy.data.node_groups[materials.SURFACE_GROUP]   # rebuilt in place: only this mode's outputs
+    assert {n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV"} == {
+        "atmos_coverage", "atmos_distance", "atmos_view"}
+    assert not any(n.bl_idname == "ShaderNodeGroup" for n in surface.nodes)
+    other = bpy.data.scenes.new("Other")   # a second enabled scene in the Compositor mode: the group holds both
+    other.camera = scene.camera
+    other.collection.objects.link(bpy.data.objects["Thing"])
+    effect.enable_effect(other)
+    assert {n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV"} == {
+        "atmos_coverage", "atmos_distance", "atmos_view", "atmos_transmittance", "atmos_inscattering"}
+    effect.disable_effect(other)
+    bpy.data.scenes.remove(other)
+    scene["atmos_sun_irradiance"] = (1.0, 2.0, 3.0)   # what sync writes; the driver reads it
+    scene.frame_set(scene.frame_current)
+    assert tuple(round(v, 6) for v in node.inputs["Sun Irradiance (W/m^2)"].default_value) == (1.0, 2.0, 3.0)
+    scene.atmos.render_mode = "COMPOSITOR"
+    node = compositor._current_tree(scene).nodes[compositor.COMPOSITE_NODE]
+    assert node.node_tree.name == compositor.GROUP_NAME
+    assert {aov.name for aov in scene.view_layers[0].aovs} == {"atmos_coverage", "atmos_transmittance",
+                                                                 "atmos_inscattering"}
+    animation = compositor._current_tree(scene).animation_data
+    assert animation is None or not animation.drivers
+    scene.atmos.render_mode = "PER_PIXEL"
+    effect.disable_effect(scene)
+    assert _compositor_state(scene) == before or not compositor.GROUP_API
+    assert "Atmos Aerial Composite (Per Pixel)" not in bpy.data.node_groups
+    tree = compositor._current_tree(scene)
+    assert tree is None or tree.animation_data is None or not tree.animation_data.drivers
+    assert not list(scene.view_layers[0].aovs)
+
+
 def _expected_balanced(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
     """L0 F_ex + L_in of ``physics.balanced`` for the camera at the scene's origin altitude (it sits at z = 0)."""
     from atmos_addon.physics.balanced import extinction_balanced, inscattering_balanced, sun_optical_depths_ground

@@ -155,6 +155,17 @@ def test_apply_in_render_mode_writes_the_domes(workdir: Path) -> None:
     assert "Atmos Dome (molecules)" in objects and "Atmos Dome (aerosols)" in objects
 
 
+def test_render_in_per_pixel_mode_writes_its_aovs(workdir: Path) -> None:
+    """--mode per-pixel renders, and the multilayer EXR carries the distance and view AOVs it composites from."""
+    out = workdir / "per_pixel.exr"
+    proc = run_cli("render", str(workdir / "camera.blend"), "--preset", "clear", "--engine", "cycles", "--mode",
+                   "per-pixel", "--resolution", "8x4", "--samples", "1", "--output", str(out), cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    header = out.read_bytes()[:20000]
+    for name in (b"atmos_distance", b"atmos_view", b"atmos_coverage"):
+        assert name in header, name
+
+
 def test_apply_with_a_quality_level(workdir: Path) -> None:
     out = workdir / "balanced.blend"
     proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--quality", "balanced",
@@ -191,6 +202,8 @@ def test_apply_with_a_quality_level(workdir: Path) -> None:
         (("render", "nocamera.blend", "--preset", "clear", "--output", "x.png"), ("no camera",)),
         (("render", "camera.blend", "--preset", "clear", "--engine", "eevee", "--mode", "in-render", "--output",
           "x.png"), ("--mode in-render", "Cycles")),
+        (("render", "camera.blend", "--preset", "clear", "--mode", "per-pixel", "--quality", "precise", "--output",
+          "x.png"), ("--mode per-pixel", "--quality precise")),
         (("presets", "show", "nope"), ("nope",)),
         (("presets", "validate", "camera.blend"), ("camera.blend",)),
     ],

@@ -385,6 +385,43 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
         assert difference <= 1e-4, frame
 
 
+def test_farm_renders_the_per_pixel_mode_of_a_setting_sun(tmp_path: Path) -> None:
+    """Per Pixel mode with a sun setting over 3 frames: the compositor group's parameters are driven from the
+    keyed scene properties, and a process without the add-on (no Python drivers to trust) renders frames 1 and 3
+    as the session did (max abs difference <= 1e-4); the frames differ."""
+    scene = bpy.context.scene
+    scene.atmos.render_mode = "PER_PIXEL"
+    render_utils.set_engine(scene, "CYCLES", width=16, height=16)
+    scene.cycles.samples = 4
+    scene.cycles.seed = 7
+    scene.frame_start, scene.frame_end = 1, 3
+    camera_looking_north(scene)
+    sun = sun_lamp(scene)
+    for frame, angle in ((1, 40.0), (3, 85.0)):
+        sun.rotation_euler = (math.radians(angle), 0.0, math.radians(30.0))
+        sun.keyframe_insert("rotation_euler", frame=frame)
+    world(scene)
+    far = mesh_object("Far", emissive_material("Far", (0.2, 0.5, 0.8)), location=(0.0, 9000.0, 0.0),
+                      half_size=6000.0)
+    far.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    scene.frame_set(1)
+    effect.enable_effect(scene)
+    session = {}
+    for frame in (1, 3):
+        scene.frame_set(frame)
+        session[frame] = render_utils.render_to_array(scene)
+    assert np.max(np.abs(session[1] - session[3])) > 1e-2
+    scene.render.use_compositing = False
+    raw = render_utils.render_to_array(scene)
+    scene.render.use_compositing = True
+    assert np.max(np.abs(session[3] - raw)) > 1e-2, "the effect changed nothing: the comparison would prove nothing"
+    blend = tmp_path / "farm.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    for frame in (1, 3):
+        difference = float(np.max(np.abs(_farm_render(tmp_path, blend, frame) - session[frame])))
+        print(f"per-pixel farm frame {frame}: max abs difference {difference:.3g}")
+        assert difference <= 1e-4, frame
+
 
 def test_every_view_layer_gets_the_atmosphere_and_disable_restores_them() -> None:
     """Two view layers, a Render Layers node for each in the user's compositor: both layers declare the AOVs,

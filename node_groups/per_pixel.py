@@ -1,0 +1,140 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The Fast aerial perspective evaluated once per pixel, in the compositor: "Atmos Aerial Composite (Per Pixel)".
+
+The Compositor mode evaluates Hoffman & Preetham's eq. 19 at every camera sample (about 50 shader nodes that
+depend on the sample, ~0.35 us per sample in Cycles: docs/quality.md, "Cost"). Per Pixel mode moves that work
+out of the render: the materials write three AOVs that cost next to nothing per sample,
+
+    atmos_coverage  C = sum a_i                  (opacity alpha a_i, as in the Compositor mode)
+    atmos_distance  D = sum a_i s_i / 1000        (s: camera distance, m; km keep Eevee's half floats in range)
+    atmos_view      V = sum a_i v_i              (v: unit view direction from the camera, world space)
+
+and this compositor group evaluates, per pixel, the mean distance s = 1000 D / C and direction v = V / |V|,
+
+    F_ex, L_in = eq. 19 on the layered virtual dome (``aerial_perspective.scattering_terms``, the Fast level)
+    T = C F_ex,  L = C L_in  ->  the "Atmos Aerial Composite" group: out = Image (T + max(1 - C, 0)) / k + L / k
+
+with the very functions that build the shader group, written channel by channel (:class:`.graph.
+ChannelGraphBuilder`): a fully covered pixel gets exactly L0 F_ex + L_in, a sky pixel (C = 0) passes untouched.
+Only edges differ from the per-sample mode: a pixel mixing two distances gets F_ex of the mean distance, not
+the mean of F_ex (Jensen's gap, first order in the mix like the per-sample mode's own edge error;
+docs/silhouettes.md measures both).
+
+The atmosphere reaches the group as input sockets of the group node (:data:`PARAMETER_SOCKETS`), which the add-on
+drives from the scene's custom properties (the ones the shader groups read): a parameter change edits values,
+a keyed sun animates them, and a farm machine without the add-on evaluates the drivers (single-property
+drivers, no Python). The tree depends only on the features (Mie, absorption), stamped like the shader groups.
+"""
+
+from __future__ import annotations
+
+import bpy
+
+from . import parameters
+from .aerial_perspective import AerialFeatures, scattering_terms
+from .dome import cos_theta_to_sun, dome_distances, sun_direction
+from .graph import COMPOSITOR_SEPARATE_XYZ, ChannelGraphBuilder
+
+GROUP_NAME = "Atmos Aerial Composite (Per Pixel)"
+#: Bump when the tree changes; stale trees are rebuilt in place (the interface, and the drivers on it, stay).
+GROUP_VERSION = 1
+VERSION_KEY = "atmos_version"
+FEATURES_KEY = "atmos_features"
+
+AOV_DISTANCE = "atmos_distance"
+AOV_VIEW = "atmos_view"
+#: Metres per unit of the distance AOV.
+DISTANCE_AOV_UNIT_M = 1000.0
+
+#: (scene custom property, group input socket, components) for every parameter the Fast graph reads.
+PARAMETER_SOCKETS = (
+    (parameters.BETA_RAYLEIGH, "Rayleigh Scattering (1/m)", 3),
+    (parameters.BETA_MIE, "Mie Scattering (1/m)", 3),
+    (parameters.BETA_MIE_ABSORPTION, "Mie Absorption (1/m)", 3),
+    (parameters.MIE_G, "Mie Anisotropy g", 3),
+    (parameters.SUN_DIRECTION, "Sun Direction", 3),
+    (parameters.SUN_IRRADIANCE, "Sun Irradiance (W/m^2)", 3),
+    (parameters.PLANET_RADIUS, "Planet Radius (m)", 1),
+    (parameters.SCALE_HEIGHTS, "Scale Heights (m)", 3),
+)
+#: Inputs fed from the Render Layers node: (socket, AOV or pass name, socket type).
+IMAGE_INPUTS = (
+    ("Image", "Image", "NodeSocketColor"),
+    ("Coverage", "atmos_coverage", "NodeSocketFloat"),
+    ("Distance", AOV_DISTANCE, "NodeSocketFloat"),
+    ("View", AOV_VIEW, "NodeSocketVector"),
+)
+
+
+def _ensure_interface(tree: bpy.types.NodeTree) -> None:
+    """Create the inputs and the output once; an existing interface is kept (so are the drivers on it)."""
+    names = [item.name for item in tree.interface.items_tree if item.item_type == "SOCKET"]
+    wanted = [name for name, _, _ in IMAGE_INPUTS] + [name for _, name, _ in PARAMETER_SOCKETS] + ["Image"]
+    if names == wanted:
+        return
+    tree.interface.clear()
+    for name, _, socket_type in IMAGE_INPUTS:
+        tree.interface.new_socket(name, in_out="INPUT", socket_type=socket_type)
+    for _, name, size in PARAMETER_SOCKETS:
+        tree.interface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector" if size == 3 else
+                                  "NodeSocketFloat")
+    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+
+
+def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures,
+                              composite_group: bpy.types.NodeTree) -> None:
+    """Clear ``tree`` and build the per-pixel graph for ``features``; ``composite_group`` combines (see module)."""
+    if features.level != "fast":
+        raise ValueError(f"the per-pixel composite evaluates the Fast level only; got {features.level!r}")
+    tree.nodes.clear()
+    _ensure_interface(tree)
+    group_in = tree.nodes.new("NodeGroupInput")
+    inputs = {}
+    for name, socket_name, size in PARAMETER_SOCKETS:
+        socket = group_in.outputs[socket_name]
+        if size == 3:
+            split = tree.nodes.new(COMPOSITOR_SEPARATE_XYZ)
+            tree.links.new(socket, split.inputs[0])
+            socket = tuple(split.outputs[:3])
+        inputs[name] = socket
+    g = ChannelGraphBuilder(tree, inputs)
+    coverage = group_in.outputs["Coverage"]
+    split_view = tree.nodes.new(COMPOSITOR_SEPARATE_XYZ)
+    tree.links.new(group_in.outputs["View"], split_view.inputs[0])
+    view = g.normalize(tuple(split_view.outputs[:3]), label="v")
+    # Blender's divide gives 0 where nothing wrote (C = 0): s = 0, F_ex = 1, L_in = 0, and T = L = 0 below.
+    s = g.mul(g.div(group_in.outputs["Distance"], coverage), DISTANCE_AOV_UNIT_M, label="s (m)")
+    r_rayleigh, r_mie = dome_distances(g, view[2])
+    s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
+    s_mie = g.min(s, r_mie, label="s_M = min(s, R_M)") if features.mie or features.absorption else None
+    f_ex, l_in = scattering_terms(g, features, s_rayleigh, s_mie, cos_theta_to_sun(g, view, sun_direction(g)))
+    combine = g.node("CompositorNodeGroup", label="Atmos: combine")
+    combine.node_tree = composite_group
+    for name, channels in (("Transmittance", g.scale(f_ex, coverage, label="T = C F_ex")),
+                           ("Inscattering", g.scale(l_in, coverage, label="L = C L_in"))):
+        colour = g.node("CompositorNodeCombineColor", label=name)
+        for socket, value in zip(colour.inputs, channels):
+            g._feed(colour, socket, value)
+        g._feed(combine, combine.inputs[name], colour.outputs[0])
+    g._feed(combine, combine.inputs["Coverage"], coverage)
+    g._feed(combine, combine.inputs["Image"], group_in.outputs["Image"])
+    output = g.node("NodeGroupOutput", label="Group Output")
+    g._feed(output, output.inputs["Image"], combine.outputs["Image"])
+    g.layout()
+    tree[VERSION_KEY] = GROUP_VERSION
+    tree[FEATURES_KEY] = features.key
+
+
+def ensure_per_pixel_group(features: AerialFeatures, composite_group: bpy.types.NodeTree) -> bpy.types.NodeTree:
+    """Get or create the per-pixel compositor group for ``features`` (the level is taken as Fast); rebuilt in place
+    when its version or features are stale, so group nodes keep their links and drivers."""
+    features = AerialFeatures(mie=features.mie, absorption=features.absorption)
+    tree = bpy.data.node_groups.get(GROUP_NAME)
+    if tree is not None and tree.bl_idname != "CompositorNodeTree":
+        raise TypeError(f'Node group "{GROUP_NAME}" exists but is a {tree.bl_idname}, not a compositor group; '
+                        f"rename or delete it, then apply Atmos again")
+    if tree is None:
+        tree = bpy.data.node_groups.new(GROUP_NAME, "CompositorNodeTree")
+    if tree.get(VERSION_KEY) != GROUP_VERSION or tree.get(FEATURES_KEY) != features.key:
+        build_per_pixel_composite(tree, features, composite_group)
+    return tree
