@@ -301,6 +301,16 @@ def _show_pass(scene, socket_name: str | None) -> None:
     tree.links.new(source, target)
 
 
+def _assert_planes_composite_the_physics(scene, pixels: np.ndarray, tolerance: float, what: str) -> None:
+    """Each of :data:`PLANES` is the physics core's L0 F_ex + L_in within ``tolerance``; the sky pixel untouched."""
+    for name, radiance, distance, column, row in PLANES:
+        expected = _expected(scene, radiance, distance, column, row)
+        got = pixels[row, column]
+        print(f"{what} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
+        assert np.allclose(got, expected, rtol=tolerance, atol=0), (what, name, got, expected)
+    np.testing.assert_allclose(pixels[SKY_PIXEL[1], SKY_PIXEL[0]], WORLD_COLOUR, rtol=2e-3)
+
+
 def _parity(engine: str, tolerance: float, tmp_path: Path) -> dict:
     scene, sun = _render_scene(engine)
     for name, radiance, distance, column, row in PLANES:
@@ -311,13 +321,8 @@ def _parity(engine: str, tolerance: float, tmp_path: Path) -> dict:
     for label, rotation in (("high", (math.radians(30), 0, math.radians(40))), ("low", (math.radians(80), 0, 2.5))):
         sun.rotation_euler = rotation
         bpy.context.view_layer.update()  # the depsgraph handler re-syncs the sun
-        pixels = _render(scene, tmp_path, f"{engine}_{label}")
-        for name, radiance, distance, column, row in PLANES:
-            expected = _expected(scene, radiance, distance, column, row)
-            got = pixels[row, column]
-            print(f"parity {engine} sun={label} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
-            assert np.allclose(got, expected, rtol=tolerance, atol=0), (engine, label, name, got, expected)
-        np.testing.assert_allclose(pixels[SKY_PIXEL[1], SKY_PIXEL[0]], WORLD_COLOUR, rtol=2e-3)
+        _assert_planes_composite_the_physics(scene, _render(scene, tmp_path, f"{engine}_{label}"), tolerance,
+                                             f"parity {engine} sun={label}")
     for socket_name in ("atmos_transmittance", "atmos_inscattering"):
         _show_pass(scene, socket_name)
         pixels = _render(scene, tmp_path, f"{engine}_{socket_name}")
@@ -417,13 +422,8 @@ def test_per_pixel_mode_composites_the_physics(engine: str, tolerance: float, tm
     for label, rotation in (("high", (math.radians(30), 0, math.radians(40))), ("low", (math.radians(80), 0, 2.5))):
         sun.rotation_euler = rotation
         bpy.context.view_layer.update()
-        pixels = _render(scene, tmp_path, f"{engine}_per_pixel_{label}")
-        for name, radiance, distance, column, row in PLANES:
-            expected = _expected(scene, radiance, distance, column, row)
-            got = pixels[row, column]
-            print(f"per pixel {engine} sun={label} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
-            assert np.allclose(got, expected, rtol=tolerance, atol=0), (engine, label, name, got, expected)
-        np.testing.assert_allclose(pixels[SKY_PIXEL[1], SKY_PIXEL[0]], WORLD_COLOUR, rtol=2e-3)
+        _assert_planes_composite_the_physics(scene, _render(scene, tmp_path, f"{engine}_per_pixel_{label}"),
+                                             tolerance, f"per pixel {engine} sun={label}")
 
 
 def test_per_pixel_names_agree_between_the_materials_and_the_compositor_group() -> None:

@@ -340,23 +340,18 @@ def _farm_render(tmp_path: Path, blend: Path, frame: int) -> np.ndarray:
     return np.load(str(out) + ".npy")
 
 
-def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Path) -> None:
-    """Precise with a camera climbing 0 -> 3 km and a sun setting over 3 frames: one table tile per frame in
-    the packed image, the tile parameters keyed (constant), and a process without the add-on renders every frame
-    as the session did (max abs difference <= 1e-4); the frames differ from each other."""
-    from node_groups import precise as precise_nodes
-    from node_groups.parameters import PRECISE_TILE
-
-    scene = bpy.context.scene
-    scene.atmos.quality = "PRECISE"
+def _three_frames_of_a_setting_sun(scene, *, climbing_camera: bool) -> None:
+    """Cycles 16x16, 4 samples, seed 7; frames 1-3: the sun keyed from 40 to 85 deg (from the zenith), the camera
+    (looking north) keyed from 2 m to 3 km when ``climbing_camera``; a world, an emissive plane 9 km away; frame 1."""
     render_utils.set_engine(scene, "CYCLES", width=16, height=16)
     scene.cycles.samples = 4
     scene.cycles.seed = 7
     scene.frame_start, scene.frame_end = 1, 3
     camera = camera_looking_north(scene)
-    for frame, z in ((1, 2.0), (3, 3000.0)):
-        camera.location.z = z
-        camera.keyframe_insert("location", index=2, frame=frame)
+    if climbing_camera:
+        for frame, z in ((1, 2.0), (3, 3000.0)):
+            camera.location.z = z
+            camera.keyframe_insert("location", index=2, frame=frame)
     sun = sun_lamp(scene)
     for frame, angle in ((1, 40.0), (3, 85.0)):
         sun.rotation_euler = (math.radians(angle), 0.0, math.radians(30.0))
@@ -366,6 +361,18 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
                       half_size=6000.0)
     far.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
     scene.frame_set(1)
+
+
+def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Path) -> None:
+    """Precise with a camera climbing 0 -> 3 km and a sun setting over 3 frames: one table tile per frame in
+    the packed image, the tile parameters keyed (constant), and a process without the add-on renders every frame
+    as the session did (max abs difference <= 1e-4); the frames differ from each other."""
+    from node_groups import precise as precise_nodes
+    from node_groups.parameters import PRECISE_TILE
+
+    scene = bpy.context.scene
+    scene.atmos.quality = "PRECISE"
+    _three_frames_of_a_setting_sun(scene, climbing_camera=True)
     report = effect.enable_effect(scene)
     assert any("baked 3 table tiles" in message for message in report.messages), report.messages
     image = bpy.data.images[precise_nodes.IMAGE_NAME]
@@ -391,20 +398,7 @@ def test_farm_renders_the_per_pixel_mode_of_a_setting_sun(tmp_path: Path) -> Non
     as the session did (max abs difference <= 1e-4); the frames differ."""
     scene = bpy.context.scene
     scene.atmos.render_mode = "PER_PIXEL"
-    render_utils.set_engine(scene, "CYCLES", width=16, height=16)
-    scene.cycles.samples = 4
-    scene.cycles.seed = 7
-    scene.frame_start, scene.frame_end = 1, 3
-    camera_looking_north(scene)
-    sun = sun_lamp(scene)
-    for frame, angle in ((1, 40.0), (3, 85.0)):
-        sun.rotation_euler = (math.radians(angle), 0.0, math.radians(30.0))
-        sun.keyframe_insert("rotation_euler", frame=frame)
-    world(scene)
-    far = mesh_object("Far", emissive_material("Far", (0.2, 0.5, 0.8)), location=(0.0, 9000.0, 0.0),
-                      half_size=6000.0)
-    far.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
-    scene.frame_set(1)
+    _three_frames_of_a_setting_sun(scene, climbing_camera=False)
     effect.enable_effect(scene)
     session = {}
     for frame in (1, 3):
