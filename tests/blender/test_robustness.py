@@ -340,6 +340,16 @@ def _farm_render(tmp_path: Path, blend: Path, frame: int) -> np.ndarray:
     return np.load(str(out) + ".npy")
 
 
+def _assert_farm_renders_frames_as_the_session(tmp_path: Path, session: dict, frames) -> None:
+    """Save the open file and render each of ``frames`` without the add-on: max abs difference <= 1e-4."""
+    blend = tmp_path / "farm.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    for frame in frames:
+        difference = float(np.max(np.abs(_farm_render(tmp_path, blend, frame) - session[frame])))
+        print(f"farm frame {frame}: max abs difference {difference:.3g}")
+        assert difference <= 1e-4, frame
+
+
 def _three_frames_of_a_setting_sun(scene, *, climbing_camera: bool) -> None:
     """Cycles 16x16, 4 samples, seed 7; frames 1-3: the sun keyed from 40 to 85 deg (from the zenith), the camera
     (looking north) keyed from 2 m to 3 km when ``climbing_camera``; a world, an emissive plane 9 km away; frame 1."""
@@ -384,12 +394,7 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
         assert scene[PRECISE_TILE][1] == (frame - 1) * precise_nodes.ALTITUDES
         session[frame] = render_utils.render_to_array(scene)
     assert np.max(np.abs(session[1] - session[3])) > 1e-2
-    blend = tmp_path / "farm.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
-    for frame in (1, 3):
-        difference = float(np.max(np.abs(_farm_render(tmp_path, blend, frame) - session[frame])))
-        print(f"farm frame {frame}: max abs difference {difference:.3g}")
-        assert difference <= 1e-4, frame
+    _assert_farm_renders_frames_as_the_session(tmp_path, session, (1, 3))
 
 
 def test_farm_renders_the_per_pixel_mode_of_a_setting_sun(tmp_path: Path) -> None:
@@ -409,12 +414,7 @@ def test_farm_renders_the_per_pixel_mode_of_a_setting_sun(tmp_path: Path) -> Non
     raw = render_utils.render_to_array(scene)
     scene.render.use_compositing = True
     assert np.max(np.abs(session[3] - raw)) > 1e-2, "the effect changed nothing: the comparison would prove nothing"
-    blend = tmp_path / "farm.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
-    for frame in (1, 3):
-        difference = float(np.max(np.abs(_farm_render(tmp_path, blend, frame) - session[frame])))
-        print(f"per-pixel farm frame {frame}: max abs difference {difference:.3g}")
-        assert difference <= 1e-4, frame
+    _assert_farm_renders_frames_as_the_session(tmp_path, session, (1, 3))
 
 
 def test_every_view_layer_gets_the_atmosphere_and_disable_restores_them() -> None:
