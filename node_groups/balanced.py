@@ -72,14 +72,22 @@ def exp_per_channel(g: GraphBuilder, vector: Socket, *, label: str) -> Socket:
     return g.per_channel(g.exp, vector, label=label)
 
 
-def ray_geometry(g: GraphBuilder, s: Socket, view: Socket) -> tuple[Socket, Socket, Socket]:
-    """(h0, c, k): the camera's altitude (m, >= 0), the view ray's zenith cosine and its curvature k (1/m)."""
+def ray_geometry(g: GraphBuilder, s: Socket, view: Socket, camera_altitude: Socket | None = None
+                 ) -> tuple[Socket, Socket, Socket]:
+    """(h0, c, k): the camera's altitude (m, >= 0), the view ray's zenith cosine and its curvature k (1/m).
+
+    h0 is ``camera_altitude`` where the caller has it (the per-pixel compositor group), else h_P - c s from the
+    shading point's position (the shader group).
+    """
     _, _, c = g.separate(view, label="v")
-    geometry = g.node("ShaderNodeNewGeometry", label="Geometry (position)")
-    _, _, z = g.separate(geometry.outputs["Position"], label="P")
-    metres = g.attribute(parameters.METRES_PER_UNIT, output="Fac")
-    h_point = g.multiply_add(z, metres, g.attribute(parameters.ORIGIN_ALTITUDE, output="Fac"), label="h_P (m)")
-    h0 = g.max(g.multiply_add(c, g.neg(s), h_point), 0.0, label="h0 = h_P - c s")
+    if camera_altitude is None:
+        geometry = g.node("ShaderNodeNewGeometry", label="Geometry (position)")
+        _, _, z = g.separate(geometry.outputs["Position"], label="P")
+        metres = g.attribute(parameters.METRES_PER_UNIT, output="Fac")
+        h_point = g.multiply_add(z, metres, g.attribute(parameters.ORIGIN_ALTITUDE, output="Fac"), label="h_P (m)")
+        h0 = g.max(g.multiply_add(c, g.neg(s), h_point), 0.0, label="h0 = h_P - c s")
+    else:
+        h0 = camera_altitude
     planet = g.attribute(parameters.PLANET_RADIUS, output="Fac", label="R_p")
     one_minus_c2 = g.mul(g.sub(1.0, c), g.add(1.0, c), label="1 - c^2")
     k = g.div(one_minus_c2, g.mul(g.add(planet, h0), 2.0), label="k = (1 - c^2) / (2 (R_p + h0))")
@@ -118,9 +126,10 @@ def piece_columns(g: GraphBuilder, end_a: tuple[Socket, Socket], end_b: tuple[So
     return columns, n_low
 
 
-def balanced_terms(g: GraphBuilder, features, s: Socket, view: Socket, pieces: int = PIECES
-                   ) -> tuple[Socket, Socket]:
-    """(F_ex, L_in) of the Balanced model for a shading point at distance ``s`` (m) along ``view``.
+def balanced_terms(g: GraphBuilder, features, s: Socket, view: Socket, pieces: int = PIECES,
+                   camera_altitude: Socket | None = None) -> tuple[Socket, Socket]:
+    """(F_ex, L_in) of the Balanced model for a shading point at distance ``s`` (m) along ``view``, seen from a
+    camera at ``camera_altitude`` (m, >= 0; None: from the shading point's position, :func:`ray_geometry`).
 
     ``features`` is an :class:`~.aerial_perspective.AerialFeatures`: without Mie scattering there is no phase
     function for the haze, without Mie scattering or absorption no haze column in the optical depth.
@@ -128,7 +137,7 @@ def balanced_terms(g: GraphBuilder, features, s: Socket, view: Socket, pieces: i
     from .aerial_perspective import mie_extinction_coefficient, scattering_per_length
 
     mu = cos_theta_to_sun(g, view, sun_direction(g))
-    h0, c, k = ray_geometry(g, s, view)
+    h0, c, k = ray_geometry(g, s, view, camera_altitude)
     heights = g.attribute(parameters.SCALE_HEIGHTS, output="Vector", label="(H_R, H_M, 0)")
     inverse_heights = g.div((1.0, 1.0, 1.0), heights, label="1 / H")  # Vector Math divide: 0 for the z component
     altitudes, length = piece_ends(g, h0, c, k, s, pieces)

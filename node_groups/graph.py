@@ -12,6 +12,7 @@ their depth in the graph, so the tree reads left to right in the editor.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from typing import Union
 
@@ -284,12 +285,32 @@ COMPOSITOR_SEPARATE_XYZ = "ShaderNodeSeparateXYZ" if _COMPOSITOR_GROUP_API else 
 COMPOSITOR_VALUE = "ShaderNodeValue" if _COMPOSITOR_GROUP_API else "CompositorNodeValue"
 
 
+def _floor(a: float, *_) -> float:
+    return float(math.floor(a))
+
+
+#: Math operations on constant operands, computed in Python the way Blender's Math node does (a divide by 0 gives 0).
+_FOLDED: dict[str, Callable[..., float]] = {
+    "ADD": lambda a, b, *_: a + b,
+    "SUBTRACT": lambda a, b, *_: a - b,
+    "MULTIPLY": lambda a, b, *_: a * b,
+    "DIVIDE": lambda a, b, *_: a / b if b != 0.0 else 0.0,
+    "MULTIPLY_ADD": lambda a, b, c: a * b + c,
+    "MINIMUM": lambda a, b, *_: min(a, b),
+    "MAXIMUM": lambda a, b, *_: max(a, b),
+    "ABSOLUTE": lambda a, *_: abs(a),
+    "FLOOR": _floor,
+    "EXPONENT": lambda a, *_: math.exp(a),
+}
+
+
 class ChannelGraphBuilder(GraphBuilder):
     """The same arithmetic in a compositor tree, where a colour or vector is three scalar sockets.
 
     Compositor trees have no Vector Math, Gamma or Attribute node in Blender 4.2, so every per-component
     operation becomes one Math node per channel, and a colour is a 3-tuple of operands (sockets or numbers)
-    that :meth:`separate` and :meth:`combine` pass through without a node. Parameters come from a mapping
+    that :meth:`separate` and :meth:`combine` pass through without a node; arithmetic on constants only is
+    computed here, not built (the unused third component of the two-species vectors). Parameters come from a mapping
     (name -> scalar socket or 3-tuple), normally a group's inputs, through :meth:`attribute`. The functions that
     build the shader groups (``dome_distances``, ``scattering_terms``...) take either builder, so the compositor
     evaluates the very equations the shaders do, channel by channel (Vector Math is exact per component, and
@@ -304,11 +325,31 @@ class ChannelGraphBuilder(GraphBuilder):
     def _channels(value: Operand) -> tuple:
         return tuple(value) if _is_vector(value) else (value, value, value)
 
-    def _math(self, operation: str, *operands: Operand, label: str = "") -> Socket:
+    def _math(self, operation: str, *operands: Operand, label: str = "") -> Socket | float:
+        if operation in _FOLDED and not any(isinstance(value, bpy.types.NodeSocket) for value in operands):
+            return _FOLDED[operation](*(float(value) for value in operands))   # constants: no node
         node = self.node(COMPOSITOR_MATH, operation=operation, use_clamp=False, label=label)
         for socket, value in zip(node.inputs, operands):
             self._feed(node, socket, value)
         return node.outputs[0]
+
+    def prune(self) -> int:
+        """Remove the nodes this builder made whose outputs feed nothing (a component no equation reads, like the
+        third of a two-species vector), repeatedly; returns how many were removed."""
+        removed = 0
+        while True:
+            dead = [node for node in self.tree.nodes if node.name in self._depth and node.outputs
+                    and node.bl_idname != "NodeGroupOutput" and not any(out.is_linked for out in node.outputs)]
+            if not dead:
+                return removed
+            for node in dead:
+                del self._depth[node.name]
+                self.tree.nodes.remove(node)
+            removed += len(dead)
+
+    def _vector_math(self, operation: str, *operands: Operand, label: str = "") -> tuple:
+        """The Vector Math ``operation`` as one Math node per channel (FLOOR, ABSOLUTE...: the same name in Math)."""
+        return self._per_component(operation, *operands, label=label)
 
     def _per_component(self, operation: str, *operands: Operand, label: str = "") -> tuple:
         split = [self._channels(value) for value in operands]

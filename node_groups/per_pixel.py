@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The Fast aerial perspective evaluated once per pixel, in the compositor: "Atmos Aerial Composite (Per Pixel)".
+"""The aerial perspective evaluated once per pixel, in the compositor: "Atmos Aerial Composite (Per Pixel)".
 
 The Compositor mode evaluates Hoffman & Preetham's eq. 19 at every camera sample (about 50 shader nodes that
 depend on the sample, ~0.35 us per sample in Cycles: docs/quality.md, "Cost"). Per Pixel mode moves that work
@@ -11,7 +11,9 @@ out of the render: the materials write three AOVs that cost next to nothing per 
 
 and this compositor group evaluates, per pixel, the mean distance s = 1000 D / C and direction v = V / |V|,
 
-    F_ex, L_in = eq. 19 on the layered virtual dome (``aerial_perspective.scattering_terms``, the Fast level)
+    F_ex, L_in = Fast:     eq. 19 on the layered virtual dome (``aerial_perspective.scattering_terms``)
+                 Balanced: densities falling with altitude along the curved ray (``balanced.balanced_terms``),
+                           from the camera's altitude h0 = max(origin altitude + z_camera * metres per unit, 0)
     T = C F_ex,  L = C L_in  ->  the "Atmos Aerial Composite" group: out = Image (T + max(1 - C, 0)) / k + L / k
 
 with the very functions that build the shader group, written channel by channel (:class:`.graph.
@@ -23,7 +25,10 @@ docs/silhouettes.md measures both).
 The atmosphere reaches the group as input sockets of the group node (:data:`PARAMETER_SOCKETS`), which the add-on
 drives from the scene's custom properties (the ones the shader groups read): a parameter change edits values,
 a keyed sun animates them, and a farm machine without the add-on evaluates the drivers (single-property
-drivers, no Python). The tree depends only on the features (Mie, absorption), stamped like the shader groups.
+drivers, no Python). The camera's world z comes the same way, from the scene's active camera
+(``camera.matrix_world[3][2]``: a keyed, parented or constrained camera moves it per frame, and a marker that
+switches cameras switches it). The tree depends only on the features (Mie, absorption, level), stamped like the
+shader groups. The Precise level's table lookups are not evaluated here (Per Pixel applies Balanced instead).
 """
 
 from __future__ import annotations
@@ -32,12 +37,13 @@ import bpy
 
 from . import parameters
 from .aerial_perspective import AerialFeatures, scattering_terms
+from .balanced import balanced_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction
 from .graph import COMPOSITOR_SEPARATE_XYZ, ChannelGraphBuilder
 
 GROUP_NAME = "Atmos Aerial Composite (Per Pixel)"
 #: Bump when the tree changes; stale trees are rebuilt in place (the interface, and the drivers on it, stay).
-GROUP_VERSION = 1
+GROUP_VERSION = 2
 VERSION_KEY = "atmos_version"
 FEATURES_KEY = "atmos_features"
 
@@ -46,7 +52,10 @@ AOV_VIEW = "atmos_view"
 #: Metres per unit of the distance AOV.
 DISTANCE_AOV_UNIT_M = 1000.0
 
-#: (scene custom property, group input socket, components) for every parameter the Fast graph reads.
+#: Levels the group evaluates.
+LEVELS = ("fast", "balanced")
+
+#: (scene custom property, group input socket, components) for every parameter the Fast and Balanced graphs read.
 PARAMETER_SOCKETS = (
     (parameters.BETA_RAYLEIGH, "Rayleigh Scattering (1/m)", 3),
     (parameters.BETA_MIE, "Mie Scattering (1/m)", 3),
@@ -56,7 +65,13 @@ PARAMETER_SOCKETS = (
     (parameters.SUN_IRRADIANCE, "Sun Irradiance (W/m^2)", 3),
     (parameters.PLANET_RADIUS, "Planet Radius (m)", 1),
     (parameters.SCALE_HEIGHTS, "Scale Heights (m)", 3),
+    (parameters.METRES_PER_UNIT, "Metres per Unit", 1),
+    (parameters.ORIGIN_ALTITUDE, "Origin Altitude (m)", 1),
+    (parameters.SUN_OPTICAL_DEPTH_RAYLEIGH, "Sun Optical Depth, Rayleigh", 3),
+    (parameters.SUN_OPTICAL_DEPTH_MIE, "Sun Optical Depth, Mie", 3),
 )
+#: The input fed the scene camera's world z (scene units): (socket, driver path on the scene).
+CAMERA_SOCKET = ("Camera z (units)", "camera.matrix_world[3][2]")
 #: Inputs fed from the Render Layers node: (socket, AOV or pass name, socket type).
 IMAGE_INPUTS = (
     ("Image", "Image", "NodeSocketColor"),
@@ -69,7 +84,8 @@ IMAGE_INPUTS = (
 def _ensure_interface(tree: bpy.types.NodeTree) -> None:
     """Create the inputs and the output once; an existing interface is kept (so are the drivers on it)."""
     names = [item.name for item in tree.interface.items_tree if item.item_type == "SOCKET"]
-    wanted = [name for name, _, _ in IMAGE_INPUTS] + [name for _, name, _ in PARAMETER_SOCKETS] + ["Image"]
+    wanted = ([name for name, _, _ in IMAGE_INPUTS] + [name for _, name, _ in PARAMETER_SOCKETS] + [CAMERA_SOCKET[0]]
+              + ["Image"])
     if names == wanted:
         return
     tree.interface.clear()
@@ -78,14 +94,15 @@ def _ensure_interface(tree: bpy.types.NodeTree) -> None:
     for _, name, size in PARAMETER_SOCKETS:
         tree.interface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector" if size == 3 else
                                   "NodeSocketFloat")
+    tree.interface.new_socket(CAMERA_SOCKET[0], in_out="INPUT", socket_type="NodeSocketFloat")
     tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
 
 
 def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures,
                               composite_group: bpy.types.NodeTree) -> None:
     """Clear ``tree`` and build the per-pixel graph for ``features``; ``composite_group`` combines (see module)."""
-    if features.level != "fast":
-        raise ValueError(f"the per-pixel composite evaluates the Fast level only; got {features.level!r}")
+    if features.level not in LEVELS:
+        raise ValueError(f"the per-pixel composite evaluates the levels {LEVELS}; got {features.level!r}")
     tree.nodes.clear()
     _ensure_interface(tree)
     group_in = tree.nodes.new("NodeGroupInput")
@@ -96,6 +113,8 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
             split = tree.nodes.new(COMPOSITOR_SEPARATE_XYZ)
             tree.links.new(socket, split.inputs[0])
             socket = tuple(split.outputs[:3])
+            if name == parameters.SCALE_HEIGHTS:
+                socket = (*socket[:2], 0.0)   # (H_R, H_M, 0): the z component is a constant
         inputs[name] = socket
     g = ChannelGraphBuilder(tree, inputs)
     coverage = group_in.outputs["Coverage"]
@@ -104,10 +123,16 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
     view = g.normalize(tuple(split_view.outputs[:3]), label="v")
     # Blender's divide gives 0 where nothing wrote (C = 0): s = 0, F_ex = 1, L_in = 0, and T = L = 0 below.
     s = g.mul(g.div(group_in.outputs["Distance"], coverage), DISTANCE_AOV_UNIT_M, label="s (m)")
-    r_rayleigh, r_mie = dome_distances(g, view[2])
-    s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
-    s_mie = g.min(s, r_mie, label="s_M = min(s, R_M)") if features.mie or features.absorption else None
-    f_ex, l_in = scattering_terms(g, features, s_rayleigh, s_mie, cos_theta_to_sun(g, view, sun_direction(g)))
+    if features.level == "balanced":
+        camera_z = group_in.outputs[CAMERA_SOCKET[0]]
+        h0 = g.max(g.multiply_add(camera_z, g.attribute(parameters.METRES_PER_UNIT),
+                                  g.attribute(parameters.ORIGIN_ALTITUDE)), 0.0, label="h0 (m)")
+        f_ex, l_in = balanced_terms(g, features, s, view, camera_altitude=h0)
+    else:
+        r_rayleigh, r_mie = dome_distances(g, view[2])
+        s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
+        s_mie = g.min(s, r_mie, label="s_M = min(s, R_M)") if features.mie or features.absorption else None
+        f_ex, l_in = scattering_terms(g, features, s_rayleigh, s_mie, cos_theta_to_sun(g, view, sun_direction(g)))
     combine = g.node("CompositorNodeGroup", label="Atmos: combine")
     combine.node_tree = composite_group
     for name, channels in (("Transmittance", g.scale(f_ex, coverage, label="T = C F_ex")),
@@ -120,15 +145,22 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
     g._feed(combine, combine.inputs["Image"], group_in.outputs["Image"])
     output = g.node("NodeGroupOutput", label="Group Output")
     g._feed(output, output.inputs["Image"], combine.outputs["Image"])
+    g.prune()
     g.layout()
     tree[VERSION_KEY] = GROUP_VERSION
     tree[FEATURES_KEY] = features.key
 
 
+def per_pixel_level(level: str) -> str:
+    """The level the group evaluates for a requested ``level``: Precise falls back to Balanced."""
+    return level if level in LEVELS else "balanced"
+
+
 def ensure_per_pixel_group(features: AerialFeatures, composite_group: bpy.types.NodeTree) -> bpy.types.NodeTree:
-    """Get or create the per-pixel compositor group for ``features`` (the level is taken as Fast); rebuilt in place
-    when its version or features are stale, so group nodes keep their links and drivers."""
-    features = AerialFeatures(mie=features.mie, absorption=features.absorption)
+    """Get or create the per-pixel compositor group for ``features`` (Precise taken as Balanced,
+    :func:`per_pixel_level`); rebuilt in place when its version or features are stale, so group nodes keep their
+    links (the caller re-drives the inputs: a new interface has new sockets)."""
+    features = AerialFeatures(mie=features.mie, absorption=features.absorption, level=per_pixel_level(features.level))
     tree = bpy.data.node_groups.get(GROUP_NAME)
     if tree is not None and tree.bl_idname != "CompositorNodeTree":
         raise TypeError(f'Node group "{GROUP_NAME}" exists but is a {tree.bl_idname}, not a compositor group; '

@@ -238,35 +238,53 @@ def installed_evaluation(scene) -> str | None:
 
 
 def ensure_per_pixel_group(features):
-    """The per-pixel compositor group for the aerial ``features`` (Fast level), around the combining group."""
-    return import_sibling("node_groups").per_pixel.ensure_per_pixel_group(features, ensure_composite_group())
+    """The per-pixel compositor group for the aerial ``features`` (Fast or Balanced), around the combining group.
+
+    A group of an older version rebuilt with a new interface gets its group nodes' inputs driven again (in every
+    scene that shows it), so no input is left at its default.
+    """
+    per_pixel = import_sibling("node_groups").per_pixel
+    old = bpy.data.node_groups.get(per_pixel.GROUP_NAME)
+    interface_before = None if old is None else len(old.interface.items_tree)
+    tree = per_pixel.ensure_per_pixel_group(features, ensure_composite_group())
+    if interface_before is not None and len(tree.interface.items_tree) != interface_before:
+        for scene in bpy.data.scenes:
+            for node in _installed_nodes(scene):
+                if node.node_tree == tree:
+                    _drive_parameters(node, scene)
+    return tree
 
 
 def _drive_parameters(node, scene) -> None:
-    """Drive the per-pixel group node's parameter inputs from ``scene``'s Atmos custom properties.
+    """Drive the per-pixel group node's parameter inputs from ``scene``'s Atmos custom properties, and its camera
+    input from the world z of the scene's active camera.
 
     Single-property drivers (type Average of one variable): Blender evaluates them without Python, so a farm
-    machine without the add-on, or a file opened with scripts disabled, renders the keyed parameters.
+    machine without the add-on, or a file opened with scripts disabled, renders the keyed parameters and the
+    animated camera. Existing drivers are reset in place (a rebuilt group keeps its sockets' drivers).
     """
-    tree = node.id_data
-    for name, socket_name, size in import_sibling("node_groups").per_pixel.PARAMETER_SOCKETS:
-        socket = node.inputs[socket_name]
-        for index in range(size):
-            curve = socket.driver_add("default_value", index) if size > 1 else socket.driver_add("default_value")
-            for modifier in list(curve.modifiers):
-                curve.modifiers.remove(modifier)
-            while curve.keyframe_points:   # a driver F-curve with points maps the driver's value through them
-                curve.keyframe_points.remove(curve.keyframe_points[0], fast=True)
-            driver = curve.driver
-            driver.type = "AVERAGE"
-            while driver.variables:
-                driver.variables.remove(driver.variables[0])
-            variable = driver.variables.new()
-            variable.type = "SINGLE_PROP"
-            variable.targets[0].id_type = "SCENE"
-            variable.targets[0].id = scene
-            variable.targets[0].data_path = f'["{name}"][{index}]' if size > 1 else f'["{name}"]'
-    tree.update_tag()
+    per_pixel = import_sibling("node_groups").per_pixel
+    targets = [(node.inputs[socket_name], index if size > 1 else None,
+                f'["{name}"][{index}]' if size > 1 else f'["{name}"]')
+               for name, socket_name, size in per_pixel.PARAMETER_SOCKETS for index in range(size)]
+    camera_socket, camera_path = per_pixel.CAMERA_SOCKET
+    targets.append((node.inputs[camera_socket], None, camera_path))
+    for socket, index, data_path in targets:
+        curve = socket.driver_add("default_value", index) if index is not None else socket.driver_add("default_value")
+        for modifier in list(curve.modifiers):
+            curve.modifiers.remove(modifier)
+        while curve.keyframe_points:   # a driver F-curve with points maps the driver's value through them
+            curve.keyframe_points.remove(curve.keyframe_points[0], fast=True)
+        driver = curve.driver
+        driver.type = "AVERAGE"
+        while driver.variables:
+            driver.variables.remove(driver.variables[0])
+        variable = driver.variables.new()
+        variable.type = "SINGLE_PROP"
+        variable.targets[0].id_type = "SCENE"
+        variable.targets[0].id = scene
+        variable.targets[0].data_path = data_path
+    node.id_data.update_tag()
 
 
 def _remove_drivers(node) -> None:

@@ -1,9 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Notice hand edits inside the node groups Atmos manages, and put the groups back.
 
-Atmos owns three shader groups: "Atmos Aerial Perspective", "Atmos Sky" and "Atmos Surface AOVs". A
-user who opens one (Tab) and changes a value or a link changes the effect in every material, usually
-by accident. Each group carries a fingerprint of what the builder made (``tree["atmos_fingerprint"]``:
+Atmos owns three shader groups: "Atmos Aerial Perspective", "Atmos Sky" and "Atmos Surface AOVs", and in Per
+Pixel mode the compositor group "Atmos Aerial Composite (Per Pixel)". A user who opens one (Tab) and changes a
+value or a link changes the effect in every material or render, usually by accident. Each group carries a fingerprint of what the builder made (``tree["atmos_fingerprint"]``:
 a hash of the nodes' types, names and settings, the links and the unlinked inputs' values, and the
 interface; node locations, labels and selection are left out, so tidying the layout is no edit),
 stamped right after the builder ran and keyed on the group's version and feature stamps and the
@@ -29,8 +29,12 @@ STAMP_KEY = "atmos_fingerprint_of"
 AERIAL = "Atmos Aerial Perspective"
 SKY = "Atmos Sky"
 SURFACE = "Atmos Surface AOVs"
-#: The managed groups, in build order (the surface group instances the aerial group).
-MANAGED = (AERIAL, SKY, SURFACE)
+PER_PIXEL = "Atmos Aerial Composite (Per Pixel)"
+#: The managed groups, in build order (the surface group instances the aerial group; the Per Pixel mode's
+#: compositor group exists only while a scene uses that mode).
+MANAGED = (AERIAL, SKY, SURFACE, PER_PIXEL)
+#: The managed groups that are not shader groups.
+_TREE_TYPES = {PER_PIXEL: "CompositorNodeTree"}
 
 #: Node properties every node has (layout, selection, bookkeeping): not part of the fingerprint.
 _BASE_PROPERTIES: frozenset[str] | None = None
@@ -103,7 +107,7 @@ def _build_key(tree) -> str:
 def _managed_trees():
     for name in MANAGED:
         tree = bpy.data.node_groups.get(name)
-        if tree is not None and tree.bl_idname == "ShaderNodeTree" and tree.library is None:
+        if tree is not None and tree.bl_idname == _TREE_TYPES.get(name, "ShaderNodeTree") and tree.library is None:
             yield tree
 
 
@@ -163,11 +167,20 @@ def reset_groups(scene, names=None) -> list[str]:
             groups.aerial_perspective.build_aerial_perspective(tree, sync.features_from_settings(settings))
         elif tree.name == SKY:
             groups.sky.build_sky(tree, sync.sky_features_from_settings(settings))
+        elif tree.name == PER_PIXEL:
+            from . import compositor
+
+            features = sync.features_from_settings(settings)
+            features = groups.aerial_perspective.AerialFeatures(
+                mie=features.mie, absorption=features.absorption,
+                level=groups.per_pixel.per_pixel_level(features.level))
+            groups.per_pixel.build_per_pixel_composite(tree, features, compositor.ensure_composite_group())
         else:
             aerial = bpy.data.node_groups.get(AERIAL) or sync.ensure_group(scene)
             if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
                 materials._surface_group_interface(tree)
-            materials._populate_surface_group(tree, aerial)
+            evaluations = tuple(str(tree.get(materials.EVALUATIONS_KEY, "COMPOSITOR")).split(","))
+            materials._populate_surface_group(tree, aerial, evaluations)   # the modes it was built for
         stamp(tree)
         done.append(tree.name)
     invalidate()

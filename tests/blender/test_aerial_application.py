@@ -412,11 +412,10 @@ def test_per_pixel_mode_composites_the_physics(engine: str, tolerance: float, tm
     for name, radiance, distance, column, row in PLANES:
         _emissive_plane(name, radiance, distance, column, row)
     scene.atmos.sky_enabled = False
-    scene.atmos.quality = "BALANCED"   # Per Pixel applies Fast whatever the level, and says so
+    scene.atmos.quality = "FAST"
     scene.atmos.render_mode = "PER_PIXEL"
     effect.enable_effect(scene)
-    assert "Per Pixel mode applies Fast" in scene.atmos.status_quality
-    assert "per pixel" in scene.atmos.status_built
+    assert scene.atmos.status_built.startswith("Fast, ") and "per pixel" in scene.atmos.status_built
     layer_aovs = {aov.name for aov in scene.view_layers[0].aovs}
     assert layer_aovs == {"atmos_coverage", "atmos_distance", "atmos_view"}
     for label, rotation in (("high", (math.radians(30), 0, math.radians(40))), ("low", (math.radians(80), 0, 2.5))):
@@ -450,7 +449,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     assert node.node_tree.name == "Atmos Aerial Composite (Per Pixel)"
     assert compositor.installed_evaluation(scene) == "PER_PIXEL"
     drivers = [curve for curve in tree.animation_data.drivers if curve.data_path.startswith('nodes["Atmos Aerial')]
-    assert len(drivers) == 3 * 7 + 1
+    assert len(drivers) == 3 * 9 + 3 + 1   # 9 colour/vector parameters, 3 scalars, the camera's z
     assert snapshot(user.node_tree) == material_nodes
     assert {aov.name for aov in scene.view_layers[0].aovs} == {"atmos_coverage", "atmos_distance", "atmos_view"}
     surface = bpy.data.node_groups[materials.SURFACE_GROUP]   # rebuilt in place: only this mode's outputs
@@ -485,7 +484,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
 
 
 def _expected_balanced(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
-    """L0 F_ex + L_in of ``physics.balanced`` for the camera at the scene's origin altitude (it sits at z = 0)."""
+    """L0 F_ex + L_in of ``physics.balanced`` for the scene's camera (origin altitude + its z)."""
     from atmos_addon.physics.balanced import extinction_balanced, inscattering_balanced, sun_optical_depths_ground
 
     atmosphere = sync.atmosphere_from_settings(scene.atmos)
@@ -494,25 +493,37 @@ def _expected_balanced(scene, radiance, distance: float, column: int, row: int) 
     e_sun = sun_irradiance_ground(elevation, atmosphere)
     metres = distance * sync.metres_per_unit(scene)
     view = np.array(_pixel_direction(column, row))
-    h0 = scene.atmos.origin_altitude
+    h0 = scene.atmos.origin_altitude + scene.camera.location.z * sync.metres_per_unit(scene)
     return (np.asarray(radiance) * extinction_balanced(h0, view, metres, atmosphere)
             + inscattering_balanced(h0, view, metres, float(view @ sun_dir), atmosphere, e_sun,
                                     sun_optical_depths=sun_optical_depths_ground(elevation, atmosphere)))
 
 
+@pytest.mark.parametrize("mode", ["COMPOSITOR", "PER_PIXEL"])
 @pytest.mark.parametrize("engine, tolerance", [("CYCLES", 2e-3), (EEVEE, 1e-2)])
-def test_balanced_level_composites_the_physics(engine: str, tolerance: float, tmp_path: Path) -> None:
-    """An aircraft 3 km up (the origin altitude): the composited pixels are ``physics.balanced``, far from Fast."""
+def test_balanced_level_composites_the_physics(engine: str, tolerance: float, mode: str, tmp_path: Path) -> None:
+    """An aircraft 3 km up (the origin altitude 2.5 km, the camera and the planes raised 500 m): the composited
+    pixels are ``physics.balanced``, far from Fast. The shader group takes the camera's altitude from the shading
+    point, the per-pixel group from the driven camera z (asked for Precise, Per Pixel applies Balanced)."""
     scene, sun = _render_scene(engine)
     for name, radiance, distance, column, row in PLANES:
         _emissive_plane(name, radiance, distance, column, row)
+    for obj in scene.objects:
+        if obj.type != "LIGHT":
+            obj.location.z += 500.0
     scene.atmos.sky_enabled = False
-    scene.atmos.quality = "BALANCED"
-    scene.atmos.origin_altitude = 3000.0
+    scene.atmos.quality = "PRECISE" if mode == "PER_PIXEL" else "BALANCED"
+    scene.atmos.render_mode = mode
+    scene.atmos.origin_altitude = 2500.0
     sun.rotation_euler = (math.radians(30), 0, math.radians(40))
     effect.enable_effect(scene)
-    assert bpy.data.node_groups["Atmos Aerial Perspective"]["atmos_features"].endswith("+balanced")
-    pixels = _render(scene, tmp_path, f"{engine}_balanced")
+    if mode == "PER_PIXEL":
+        assert "Per Pixel mode applies Balanced" in scene.atmos.status_quality
+        per_pixel = bpy.data.node_groups["Atmos Aerial Composite (Per Pixel)"]
+        assert per_pixel["atmos_features"].endswith("+balanced")
+    else:
+        assert bpy.data.node_groups["Atmos Aerial Perspective"]["atmos_features"].endswith("+balanced")
+    pixels = _render(scene, tmp_path, f"{engine}_{mode}_balanced")
     for name, radiance, distance, column, row in PLANES:
         expected = _expected_balanced(scene, radiance, distance, column, row)
         got = pixels[row, column]

@@ -72,7 +72,8 @@ def _a_math_input(tree):
 
 def test_fresh_groups_are_stamped_and_not_reported_as_edited() -> None:
     _enabled_scene()
-    for name in group_integrity.MANAGED:
+    assert group_integrity.PER_PIXEL not in bpy.data.node_groups   # only while a scene uses the Per Pixel mode
+    for name in (group_integrity.AERIAL, group_integrity.SKY, group_integrity.SURFACE):
         tree = bpy.data.node_groups[name]
         assert tree.get(group_integrity.FINGERPRINT_KEY) == group_integrity.fingerprint(tree), name
     assert group_integrity.edited_groups(force=True) == []
@@ -121,6 +122,30 @@ def test_edits_to_links_and_settings_in_sky_and_surface_groups_are_noticed() -> 
     group_integrity.reset_groups(bpy.context.scene)
     assert group_integrity.edited_groups() == []
     assert next(n for n in surface.nodes if n.bl_idname == "ShaderNodeMath").operation == "SUBTRACT"
+
+
+def test_the_per_pixel_compositor_group_is_watched_and_reset_keeps_the_mode() -> None:
+    """Per Pixel mode: an edit inside its compositor group is reported; Reset rebuilds it at the scene's level
+    (Balanced), and the surface group with the Per Pixel outputs it was built for, not the Compositor mode's."""
+    scene = bpy.context.scene
+    scene.atmos.render_mode = "PER_PIXEL"
+    scene.atmos.quality = "BALANCED"
+    _enabled_scene()
+    per_pixel = bpy.data.node_groups[group_integrity.PER_PIXEL]
+    surface = bpy.data.node_groups[group_integrity.SURFACE]
+    aovs_before = sorted(n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV")
+    assert aovs_before == ["atmos_coverage", "atmos_distance", "atmos_view"]
+    n_nodes = len(per_pixel.nodes)
+    assert group_integrity.edited_groups(force=True) == []
+    per_pixel.links.remove(per_pixel.links[5])
+    surface.links.remove(surface.links[0])
+    bpy.context.view_layer.update()
+    assert group_integrity.edited_groups() == [group_integrity.SURFACE, group_integrity.PER_PIXEL]
+    assert bpy.ops.atmos.reset_groups() == {"FINISHED"}
+    assert group_integrity.edited_groups(force=True) == []
+    assert bpy.data.node_groups[group_integrity.PER_PIXEL] == per_pixel and len(per_pixel.nodes) == n_nodes
+    assert per_pixel["atmos_features"].endswith("+balanced")
+    assert sorted(n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV") == aovs_before
 
 
 def test_a_feature_rebuild_is_not_an_edit_and_the_panel_draw_is_cached() -> None:
