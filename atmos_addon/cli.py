@@ -171,9 +171,6 @@ def _prepare_scene(args: argparse.Namespace, *, with_preset: bool = True):
         if mode == "in-render" and not in_render.supported():
             raise CliError("--mode in-render needs Blender 4.5 or newer (Cycles 4.2 loses indirect light inside "
                            "the haze domes); use --mode compositor")
-        if mode == "per-pixel" and getattr(args, "quality", None) == "precise":
-            raise CliError("--mode per-pixel evaluates the Fast and Balanced levels; use --mode compositor for "
-                           "--quality precise")
         overrides["render_mode"] = MODES[mode]
     if getattr(args, "quality", None) is not None:
         overrides["quality"] = args.quality.upper()
@@ -347,8 +344,8 @@ def _add_effect_options(parser: argparse.ArgumentParser, *, preset_required: boo
     parser.add_argument("--samples", type=_positive_int, help="render samples")
     parser.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
     parser.add_argument("--mode", choices=tuple(MODES),
-                        help="compositor (both engines: AOVs + compositor), per-pixel (both engines: the Fast or "
-                             "Balanced level evaluated once per pixel in the compositor, no per-sample cost) or in-render (Cycles: "
+                        help="compositor (both engines: AOVs + compositor), per-pixel (both engines: the quality level "
+                             "evaluated once per pixel in the compositor, no per-sample cost) or in-render (Cycles: "
                              "exact per ray segment, reflections and refractions included); default: the scene's "
                              "setting")
     parser.add_argument("--quality", choices=QUALITY_LEVELS,

@@ -238,6 +238,14 @@ class GraphBuilder:
 
     # -- inputs and outputs -------------------------------------------------------------------------
 
+    def texel(self, image: bpy.types.Image | None, u: Operand, v: Operand, *, label: str = "") -> Socket:
+        """The colour of ``image`` at texture coordinates (u, v), unfiltered (Closest; edges extended). Callers
+        sample texel centres, (x + 0.5) / width."""
+        node = self.node("ShaderNodeTexImage", label=label, interpolation="Closest", extension="EXTEND")
+        node.image = image
+        self._feed(node, node.inputs["Vector"], self.combine(u, v, 0.0, label=f"uv ({label})"))
+        return node.outputs["Color"]
+
     def attribute(self, name: str, *, attribute_type: str = "VIEW_LAYER", output: str = "Color",
                   label: str = "") -> Socket:
         """The ``output`` socket (Color, Vector or Fac) of an Attribute node reading ``name``."""
@@ -283,6 +291,7 @@ _COMPOSITOR_GROUP_API = "compositing_node_group" in bpy.types.Scene.bl_rna.prope
 COMPOSITOR_MATH = "ShaderNodeMath" if _COMPOSITOR_GROUP_API else "CompositorNodeMath"
 COMPOSITOR_SEPARATE_XYZ = "ShaderNodeSeparateXYZ" if _COMPOSITOR_GROUP_API else "CompositorNodeSeparateXYZ"
 COMPOSITOR_VALUE = "ShaderNodeValue" if _COMPOSITOR_GROUP_API else "CompositorNodeValue"
+COMPOSITOR_COMBINE_XYZ = "ShaderNodeCombineXYZ" if _COMPOSITOR_GROUP_API else "CompositorNodeCombineXYZ"
 
 
 def _floor(a: float, *_) -> float:
@@ -320,6 +329,7 @@ class ChannelGraphBuilder(GraphBuilder):
     def __init__(self, tree: bpy.types.NodeTree, parameters: dict[str, Operand]) -> None:
         super().__init__(tree)
         self.parameters = parameters
+        self._image_node = None
 
     @staticmethod
     def _channels(value: Operand) -> tuple:
@@ -410,6 +420,28 @@ class ChannelGraphBuilder(GraphBuilder):
     def per_channel(self, fn: Callable[..., Socket], *operands: Operand, label: str = "") -> tuple:
         split = [self._channels(op) if _is_vector(op) else (op, op, op) for op in operands]
         return tuple(fn(*(parts[c] for parts in split)) for c in range(3))
+
+    def texel(self, image: bpy.types.Image | None, u: Operand, v: Operand, *, label: str = "") -> tuple:
+        """``image`` at per-pixel coordinates (u, v), unfiltered: an Image node (one per builder) sampled by a Map UV
+        node with nearest-texel filtering (4.2-4.5: ``filter_type``; 5.0: the Interpolation input). The UV's third
+        component is its alpha in 4.2 (0 would blank the sample), so it is 1."""
+        if self._image_node is None:
+            self._image_node = self.node("CompositorNodeImage", label="table image")
+            self._image_node.image = image
+        uv = self.node(COMPOSITOR_COMBINE_XYZ, label=f"uv ({label})")
+        for socket, value in zip(uv.inputs, (u, v, 1.0)):
+            self._feed(uv, socket, value)
+        node = self.node("CompositorNodeMapUV", label=label)
+        if "Interpolation" in node.inputs:
+            node.inputs["Interpolation"].default_value = "Nearest"
+            node.inputs["Extension X"].default_value = node.inputs["Extension Y"].default_value = "Extend"
+        else:
+            node.filter_type = "NEAREST"
+        self._feed(node, node.inputs["Image"], self._image_node.outputs["Image"])
+        self._feed(node, node.inputs["UV"], uv.outputs[0])
+        split = self.node(COMPOSITOR_SEPARATE_XYZ, label=label)
+        self._feed(split, split.inputs[0], node.outputs["Image"])
+        return tuple(split.outputs[:3])
 
     def attribute(self, name: str, *, attribute_type: str = "VIEW_LAYER", output: str = "Color",
                   label: str = ""):

@@ -14,6 +14,8 @@ and this compositor group evaluates, per pixel, the mean distance s = 1000 D / C
     F_ex, L_in = Fast:     eq. 19 on the layered virtual dome (``aerial_perspective.scattering_terms``)
                  Balanced: densities falling with altitude along the curved ray (``balanced.balanced_terms``),
                            from the camera's altitude h0 = max(origin altitude + z_camera * metres per unit, 0)
+                 Precise:  the frame's baked table (``precise.precise_terms``), its texels fetched by Map UV nodes
+                           with nearest filtering and blended bilinearly in the graph, as the shader does
     T = C F_ex,  L = C L_in  ->  the "Atmos Aerial Composite" group: out = Image (T + max(1 - C, 0)) / k + L / k
 
 with the very functions that build the shader group, written channel by channel (:class:`.graph.
@@ -28,7 +30,7 @@ a keyed sun animates them, and a farm machine without the add-on evaluates the d
 drivers, no Python). The camera's world z comes the same way, from the scene's active camera
 (``camera.matrix_world[3][2]``: a keyed, parented or constrained camera moves it per frame, and a marker that
 switches cameras switches it). The tree depends only on the features (Mie, absorption, level), stamped like the
-shader groups. The Precise level's table lookups are not evaluated here (Per Pixel applies Balanced instead).
+shader groups. The Precise table image is the packed one the shader groups sample.
 """
 
 from __future__ import annotations
@@ -38,12 +40,13 @@ import bpy
 from . import parameters
 from .aerial_perspective import AerialFeatures, scattering_terms
 from .balanced import balanced_terms
+from .precise import precise_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction
 from .graph import COMPOSITOR_SEPARATE_XYZ, ChannelGraphBuilder
 
 GROUP_NAME = "Atmos Aerial Composite (Per Pixel)"
 #: Bump when the tree changes; stale trees are rebuilt in place (the interface, and the drivers on it, stay).
-GROUP_VERSION = 2
+GROUP_VERSION = 3
 VERSION_KEY = "atmos_version"
 FEATURES_KEY = "atmos_features"
 
@@ -53,7 +56,7 @@ AOV_VIEW = "atmos_view"
 DISTANCE_AOV_UNIT_M = 1000.0
 
 #: Levels the group evaluates.
-LEVELS = ("fast", "balanced")
+LEVELS = ("fast", "balanced", "precise")
 
 #: (scene custom property, group input socket, components) for every parameter the Fast and Balanced graphs read.
 PARAMETER_SOCKETS = (
@@ -70,6 +73,13 @@ PARAMETER_SOCKETS = (
     (parameters.SUN_OPTICAL_DEPTH_RAYLEIGH, "Sun Optical Depth, Rayleigh", 3),
     (parameters.SUN_OPTICAL_DEPTH_MIE, "Sun Optical Depth, Mie", 3),
 )
+#: The Precise level's per-frame table parameters (driven only where the group is built at that level: the
+#: scene has them only then).
+PRECISE_SOCKETS = (
+    (parameters.PRECISE_TILE, "Precise Tile (x0, y0, h_c)", 3),
+    (parameters.PRECISE_SCALE, "Precise Scale (D, top)", 3),
+    (parameters.PRECISE_ATLAS, "Precise Atlas Size", 3),
+)
 #: The input fed the scene camera's world z (scene units): (socket, driver path on the scene).
 CAMERA_SOCKET = ("Camera z (units)", "camera.matrix_world[3][2]")
 #: Inputs fed from the Render Layers node: (socket, AOV or pass name, socket type).
@@ -85,7 +95,7 @@ def _ensure_interface(tree: bpy.types.NodeTree) -> None:
     """Create the inputs and the output once; an existing interface is kept (so are the drivers on it)."""
     names = [item.name for item in tree.interface.items_tree if item.item_type == "SOCKET"]
     wanted = ([name for name, _, _ in IMAGE_INPUTS] + [name for _, name, _ in PARAMETER_SOCKETS] + [CAMERA_SOCKET[0]]
-              + ["Image"])
+              + [name for _, name, _ in PRECISE_SOCKETS] + ["Image"])
     if names == wanted:
         return
     tree.interface.clear()
@@ -95,6 +105,8 @@ def _ensure_interface(tree: bpy.types.NodeTree) -> None:
         tree.interface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector" if size == 3 else
                                   "NodeSocketFloat")
     tree.interface.new_socket(CAMERA_SOCKET[0], in_out="INPUT", socket_type="NodeSocketFloat")
+    for _, name, _ in PRECISE_SOCKETS:
+        tree.interface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector")
     tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
 
 
@@ -107,7 +119,7 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
     _ensure_interface(tree)
     group_in = tree.nodes.new("NodeGroupInput")
     inputs = {}
-    for name, socket_name, size in PARAMETER_SOCKETS:
+    for name, socket_name, size in PARAMETER_SOCKETS + PRECISE_SOCKETS:
         socket = group_in.outputs[socket_name]
         if size == 3:
             split = tree.nodes.new(COMPOSITOR_SEPARATE_XYZ)
@@ -128,6 +140,8 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
         h0 = g.max(g.multiply_add(camera_z, g.attribute(parameters.METRES_PER_UNIT),
                                   g.attribute(parameters.ORIGIN_ALTITUDE)), 0.0, label="h0 (m)")
         f_ex, l_in = balanced_terms(g, features, s, view, camera_altitude=h0)
+    elif features.level == "precise":   # the tile's camera altitude is a parameter: no camera input
+        f_ex, l_in = precise_terms(g, features, s, view)
     else:
         r_rayleigh, r_mie = dome_distances(g, view[2])
         s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
@@ -151,16 +165,10 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
     tree[FEATURES_KEY] = features.key
 
 
-def per_pixel_level(level: str) -> str:
-    """The level the group evaluates for a requested ``level``: Precise falls back to Balanced."""
-    return level if level in LEVELS else "balanced"
-
-
 def ensure_per_pixel_group(features: AerialFeatures, composite_group: bpy.types.NodeTree) -> bpy.types.NodeTree:
-    """Get or create the per-pixel compositor group for ``features`` (Precise taken as Balanced,
-    :func:`per_pixel_level`); rebuilt in place when its version or features are stale, so group nodes keep their
-    links (the caller re-drives the inputs: a new interface has new sockets)."""
-    features = AerialFeatures(mie=features.mie, absorption=features.absorption, level=per_pixel_level(features.level))
+    """Get or create the per-pixel compositor group for ``features``; rebuilt in place when its version or features
+    are stale, so group nodes keep their links (the caller re-drives the inputs: a new interface has new sockets,
+    and only the Precise level's group reads the table parameters)."""
     tree = bpy.data.node_groups.get(GROUP_NAME)
     if tree is not None and tree.bl_idname != "CompositorNodeTree":
         raise TypeError(f'Node group "{GROUP_NAME}" exists but is a {tree.bl_idname}, not a compositor group; '

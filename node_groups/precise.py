@@ -45,11 +45,8 @@ def table_image() -> bpy.types.Image | None:
 
 
 def _texel(g: GraphBuilder, u: Socket, v: Socket, label: str) -> Socket:
-    """The image's texel at texture coordinates (u, v) (a texel centre), unfiltered: its colour."""
-    node = g.node("ShaderNodeTexImage", label=label, interpolation="Closest", extension="EXTEND")
-    node.image = table_image()
-    g._feed(node, node.inputs["Vector"], g.combine(u, v, 0.0, label=f"uv ({label})"))
-    return node.outputs["Color"]
+    """The table's texel at texture coordinates (u, v) (a texel centre), unfiltered: its colour."""
+    return g.texel(table_image(), u, v, label=label)
 
 
 def _lerp(g: GraphBuilder, low: Socket, high: Socket, fraction: Socket, label: str) -> Socket:

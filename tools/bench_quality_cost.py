@@ -17,10 +17,10 @@ same configuration.
 With ``--decompose`` two more configurations split Fast's cost: "fast-sky-only" (Fast enabled, then the
 compositing and the view layer's AOVs switched off, so Cycles drops the aerial nodes and only the Atmos sky
 remains) and "fast-aerial-only" (Fast enabled, then the world's output relinked to the world's own
-Background, so only the aerial group and its compositing remain). "fast-per-pixel" and "balanced-per-pixel" are those levels in Per
-Pixel mode (the materials write distance and view direction; the compositor evaluates the level once per pixel;
-the node count is the compositor group's), and with ``--decompose`` "balanced-aerial-only",
-"fast-per-pixel-aerial-only" and "balanced-per-pixel-aerial-only" are those configurations without the Atmos sky,
+Background, so only the aerial group and its compositing remain). "fast-per-pixel", "balanced-per-pixel" and "precise-per-pixel" are
+those levels in Per Pixel mode (the materials write distance and view direction; the compositor evaluates the
+level once per pixel; the node count is the compositor group's), and with ``--decompose`` the "-aerial-only"
+variants of the levels and of their Per Pixel configurations are those configurations without the Atmos sky,
 like "fast-aerial-only".
 "off-sky-texture" is the effect off with Blender's own Sky Texture (multiple scattering in 5.0, Nishita in 4.x,
 at the valley's sun) feeding the valley world's Background: what an artist would render without Atmos, whose sky
@@ -53,7 +53,7 @@ from atmos_addon import api  # noqa: E402
 from atmos_addon.blender.materials import TAG  # noqa: E402  (the tag on nodes the add-on made)
 from sample_scenes import valley  # noqa: E402
 
-CONFIGS = ("off", "fast", "fast-per-pixel", "balanced", "balanced-per-pixel", "precise")
+CONFIGS = ("off", "fast", "fast-per-pixel", "balanced", "balanced-per-pixel", "precise", "precise-per-pixel")
 
 
 def eevee_engine_id() -> str:
@@ -84,7 +84,7 @@ def build(args: argparse.Namespace, engine: str):
 
 #: The configurations ``--decompose`` adds (see the module docstring).
 DECOMPOSED = ("fast-sky-only", "fast-aerial-only", "fast-per-pixel-aerial-only", "balanced-aerial-only",
-              "balanced-per-pixel-aerial-only")
+              "balanced-per-pixel-aerial-only", "precise-aerial-only", "precise-per-pixel-aerial-only")
 #: The effect off with Blender's own Sky Texture as the world: what an artist renders without Atmos.
 SKY_TEXTURE = "off-sky-texture"
 

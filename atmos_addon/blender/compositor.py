@@ -238,16 +238,17 @@ def installed_evaluation(scene) -> str | None:
 
 
 def ensure_per_pixel_group(features):
-    """The per-pixel compositor group for the aerial ``features`` (Fast or Balanced), around the combining group.
+    """The per-pixel compositor group for the aerial ``features``, around the combining group.
 
-    A group of an older version rebuilt with a new interface gets its group nodes' inputs driven again (in every
-    scene that shows it), so no input is left at its default.
+    When the group is rebuilt for another level or with a new interface (an older version), its group nodes'
+    inputs are driven again in every scene that shows it: no input is left at its default, and the Precise
+    table's inputs are driven only at that level (the scene has those properties only then).
     """
     per_pixel = import_sibling("node_groups").per_pixel
     old = bpy.data.node_groups.get(per_pixel.GROUP_NAME)
-    interface_before = None if old is None else len(old.interface.items_tree)
+    before = None if old is None else (len(old.interface.items_tree), old.get(per_pixel.FEATURES_KEY))
     tree = per_pixel.ensure_per_pixel_group(features, ensure_composite_group())
-    if interface_before is not None and len(tree.interface.items_tree) != interface_before:
+    if before is not None and (len(tree.interface.items_tree), tree.get(per_pixel.FEATURES_KEY)) != before:
         for scene in bpy.data.scenes:
             for node in _installed_nodes(scene):
                 if node.node_tree == tree:
@@ -257,16 +258,19 @@ def ensure_per_pixel_group(features):
 
 def _drive_parameters(node, scene) -> None:
     """Drive the per-pixel group node's parameter inputs from ``scene``'s Atmos custom properties, and its camera
-    input from the world z of the scene's active camera.
+    input from the world z of the scene's active camera; at the Precise level also the table's inputs (else their
+    drivers are removed).
 
     Single-property drivers (type Average of one variable): Blender evaluates them without Python, so a farm
     machine without the add-on, or a file opened with scripts disabled, renders the keyed parameters and the
     animated camera. Existing drivers are reset in place (a rebuilt group keeps its sockets' drivers).
     """
     per_pixel = import_sibling("node_groups").per_pixel
+    precise = str(node.node_tree.get(per_pixel.FEATURES_KEY, "")).endswith("+precise")
+    sockets = per_pixel.PARAMETER_SOCKETS + (per_pixel.PRECISE_SOCKETS if precise else ())
     targets = [(node.inputs[socket_name], index if size > 1 else None,
                 f'["{name}"][{index}]' if size > 1 else f'["{name}"]')
-               for name, socket_name, size in per_pixel.PARAMETER_SOCKETS for index in range(size)]
+               for name, socket_name, size in sockets for index in range(size)]
     camera_socket, camera_path = per_pixel.CAMERA_SOCKET
     targets.append((node.inputs[camera_socket], None, camera_path))
     for socket, index, data_path in targets:
@@ -284,7 +288,31 @@ def _drive_parameters(node, scene) -> None:
         variable.targets[0].id_type = "SCENE"
         variable.targets[0].id = scene
         variable.targets[0].data_path = data_path
+        driver.is_valid = True   # an earlier failure (a property written later) would skip it for good
+    if not precise:
+        for _, socket_name, _ in per_pixel.PRECISE_SOCKETS:
+            for index in range(3):
+                node.inputs[socket_name].driver_remove("default_value", index)
     node.id_data.update_tag()
+
+
+def revalidate_drivers(scene) -> None:
+    """Clear the "invalid" flag of the per-pixel group nodes' drivers in ``scene``. A driver whose property did not
+    exist yet when it was last evaluated (the Precise tile parameters, written by the table bake after the group
+    node was driven) is flagged and skipped from then on, in this session and in the saved file; the bake calls
+    this once the properties exist."""
+    tree = _current_tree(scene)
+    animation = None if tree is None else tree.animation_data
+    if animation is None:
+        return
+    prefixes = tuple(f'nodes["{node.name}"].inputs[' for node in _installed_nodes(scene))
+    changed = False
+    for curve in animation.drivers:
+        if prefixes and curve.data_path.startswith(prefixes) and not curve.driver.is_valid:
+            curve.driver.is_valid = True
+            changed = True
+    if changed:
+        tree.update_tag()
 
 
 def _remove_drivers(node) -> None:

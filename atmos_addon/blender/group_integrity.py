@@ -40,6 +40,10 @@ _TREE_TYPES = {PER_PIXEL: "CompositorNodeTree"}
 _BASE_PROPERTIES: frozenset[str] | None = None
 _node_properties: dict[str, tuple[str, ...]] = {}
 
+#: Settings whose choices depend on the image (a compositor Image node's render layer and view of a multilayer
+#: file): reading them on a plain image warns, and the image pointer already names what the node reads.
+_DYNAMIC_ENUMS = frozenset({"layer", "view"})
+
 #: name -> edited? for the managed groups present, or None when it must be recomputed.
 _cache: dict[str, bool] | None = None
 
@@ -58,7 +62,7 @@ def _settings_of(node) -> tuple[str, ...]:
         base = _base_properties()
         names = tuple(sorted(
             p.identifier for p in node.bl_rna.properties
-            if p.identifier not in base and not p.is_readonly
+            if p.identifier not in base and p.identifier not in _DYNAMIC_ENUMS and not p.is_readonly
             and p.type in {"BOOLEAN", "INT", "FLOAT", "STRING", "ENUM", "POINTER"}
         ))
         _node_properties[node.bl_idname] = names
@@ -170,11 +174,8 @@ def reset_groups(scene, names=None) -> list[str]:
         elif tree.name == PER_PIXEL:
             from . import compositor
 
-            features = sync.features_from_settings(settings)
-            features = groups.aerial_perspective.AerialFeatures(
-                mie=features.mie, absorption=features.absorption,
-                level=groups.per_pixel.per_pixel_level(features.level))
-            groups.per_pixel.build_per_pixel_composite(tree, features, compositor.ensure_composite_group())
+            groups.per_pixel.build_per_pixel_composite(tree, sync.features_from_settings(settings),
+                                                       compositor.ensure_composite_group())
         else:
             aerial = bpy.data.node_groups.get(AERIAL) or sync.ensure_group(scene)
             if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):

@@ -111,12 +111,13 @@ def write_tiles(tiles: list[Tile]) -> bpy.types.Image:
 
 
 def _link_image(image: bpy.types.Image) -> None:
-    """Point the image nodes of the aerial group and of the Precise sky (those built) at ``image``."""
+    """Point the image nodes of the aerial group, of the Precise sky and of the Per Pixel compositor group (those
+    built) at ``image``."""
     groups = node_groups()
-    for name in (groups.aerial_perspective.GROUP_NAME, groups.sky.SKY_GROUP_NAME):
+    for name in (groups.aerial_perspective.GROUP_NAME, groups.sky.SKY_GROUP_NAME, groups.per_pixel.GROUP_NAME):
         group = bpy.data.node_groups.get(name)
         for node in group.nodes if group is not None else ():
-            if node.bl_idname == "ShaderNodeTexImage" and node.image != image:
+            if node.bl_idname in ("ShaderNodeTexImage", "CompositorNodeImage") and node.image != image:
                 node.image = image
 
 
@@ -153,6 +154,7 @@ def bake(scene, *, force: bool = False) -> int:
     image = bpy.data.images.get(node_groups().precise.IMAGE_NAME)
     if not force and image is not None and image.get(_KEY) == key and node_groups().parameters.PRECISE_TILE in scene:
         _link_image(image)
+        _revalidate_drivers(scene)
         return 0
     tiles = [bake_tile(atmosphere, altitude, elevation, multiple_scattering=multiple, ground_albedo=albedo)
              for _, altitude, elevation in inputs]
@@ -171,8 +173,16 @@ def bake(scene, *, force: bool = False) -> int:
     if len(tiles) > 1:
         _constant_interpolation(scene, names)
         scene.frame_set(scene.frame_current)   # re-evaluate the keyed values at the current frame
+    _revalidate_drivers(scene)
     scene.update_tag()
     return len(tiles)
+
+
+def _revalidate_drivers(scene) -> None:
+    """The Per Pixel group node's drivers read the parameters just written (:func:`.compositor.revalidate_drivers`)."""
+    from . import compositor
+
+    compositor.revalidate_drivers(scene)
 
 
 def _constant_interpolation(scene, names) -> None:

@@ -369,8 +369,8 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
              "one-pixel fringe)"),
             ("PER_PIXEL", "Per Pixel",
              "Both engines, fastest: the materials write the distance and view direction, and the compositor "
-             "evaluates the Fast or Balanced level once per pixel (no per-sample cost; at silhouettes the haze of "
-             "the mean distance). Precise needs the Compositor mode (Per Pixel applies Balanced)"),
+             "evaluates the quality level once per pixel (no per-sample cost; at silhouettes the haze of the mean "
+             "distance)"),
             ("IN_RENDER", "In-Render (Cycles)",
              "Cycles: exact haze on every ray segment (reflections, refractions, depth of field, motion blur, "
              "silhouettes), no added noise. Eevee renders with the Compositor mode"),

@@ -93,8 +93,7 @@ def resolve(scene) -> str:
     """Resolve Auto for ``scene`` (summary, choice, status line) and return the level the settings ask for.
 
     In-Render mode builds its ray-segment graph with Fast whatever the level (a reflected ray does not start
-    at the camera, whose altitude the Balanced graph takes from the camera ray), and Per Pixel mode evaluates
-    Fast or Balanced in the compositor (Balanced for Precise); the status line says so.
+    at the camera, whose altitude the Balanced graph takes from the camera ray); the status line says so.
     """
     from . import in_render
 
@@ -104,9 +103,6 @@ def resolve(scene) -> str:
     if level != "fast" and mode == "IN_RENDER":
         sync._set_if_changed(settings, "status_quality", f"{settings.status_quality}. In-Render mode applies Fast "
                              "on every ray segment")
-    elif level == "precise" and mode == "PER_PIXEL":
-        sync._set_if_changed(settings, "status_quality", f"{settings.status_quality}. Per Pixel mode applies "
-                             "Balanced (Precise needs the Compositor mode)")
     return level
 
 

@@ -43,7 +43,7 @@ def node_groups():
 def features_from_settings(settings):
     """The node-group feature set the settings need (Mie and absorption terms only when non-zero) and the quality
     level (:func:`.quality_choice.level_of`; In-Render mode evaluates ray segments with the Fast level, Per Pixel
-    mode evaluates the pixels with Fast or Balanced, Balanced where Precise is asked for)."""
+    mode evaluates the pixels at any level)."""
     from . import in_render, quality_choice
 
     aerial = node_groups().aerial_perspective
@@ -51,8 +51,6 @@ def features_from_settings(settings):
     level = quality_choice.level_of(settings)
     if mode == "IN_RENDER":
         level = "fast"
-    elif mode == "PER_PIXEL":
-        level = node_groups().per_pixel.per_pixel_level(level)
     return aerial.AerialFeatures(
         mie=any(v > 0.0 for v in settings.mie_scattering_per_km),
         absorption=any(v > 0.0 for v in settings.mie_absorption_per_km),

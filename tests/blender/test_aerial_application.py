@@ -504,7 +504,7 @@ def _expected_balanced(scene, radiance, distance: float, column: int, row: int) 
 def test_balanced_level_composites_the_physics(engine: str, tolerance: float, mode: str, tmp_path: Path) -> None:
     """An aircraft 3 km up (the origin altitude 2.5 km, the camera and the planes raised 500 m): the composited
     pixels are ``physics.balanced``, far from Fast. The shader group takes the camera's altitude from the shading
-    point, the per-pixel group from the driven camera z (asked for Precise, Per Pixel applies Balanced)."""
+    point, the per-pixel group from the driven camera z."""
     scene, sun = _render_scene(engine)
     for name, radiance, distance, column, row in PLANES:
         _emissive_plane(name, radiance, distance, column, row)
@@ -512,13 +512,12 @@ def test_balanced_level_composites_the_physics(engine: str, tolerance: float, mo
         if obj.type != "LIGHT":
             obj.location.z += 500.0
     scene.atmos.sky_enabled = False
-    scene.atmos.quality = "PRECISE" if mode == "PER_PIXEL" else "BALANCED"
+    scene.atmos.quality = "BALANCED"
     scene.atmos.render_mode = mode
     scene.atmos.origin_altitude = 2500.0
     sun.rotation_euler = (math.radians(30), 0, math.radians(40))
     effect.enable_effect(scene)
     if mode == "PER_PIXEL":
-        assert "Per Pixel mode applies Balanced" in scene.atmos.status_quality
         per_pixel = bpy.data.node_groups["Atmos Aerial Composite (Per Pixel)"]
         assert per_pixel["atmos_features"].endswith("+balanced")
     else:
@@ -531,3 +530,50 @@ def test_balanced_level_composites_the_physics(engine: str, tolerance: float, mo
         assert np.allclose(got, expected, rtol=tolerance, atol=0), (engine, name, got, expected)
         fast = _expected(scene, radiance, distance, column, row)
         assert name == "Near" or np.max(np.abs(fast / expected - 1)) > 0.05  # the levels differ here
+
+
+def _expected_precise(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
+    """L0 F_ex + L_in sampled from the scene's Precise table as ``physics.precise.evaluate`` samples it (the tile
+    baked again here for the scene's camera and sun, multiple scattering off as by default)."""
+    from atmos_addon.physics.precise import bake_tile, evaluate
+
+    atmosphere = sync.atmosphere_from_settings(scene.atmos)
+    sun_dir, _ = sync.sun_direction(scene)
+    altitude = scene.atmos.origin_altitude + scene.camera.location.z * sync.metres_per_unit(scene)
+    tile = bake_tile(atmosphere, altitude, math.asin(sun_dir[2]), ground_albedo=tuple(scene.atmos.ground_albedo),
+                     multiple_scattering=bool(scene.atmos.multiple_scattering))
+    view = np.array(_pixel_direction(column, row))
+    f_ex, l_in = evaluate(tile, view, sun_dir, distance * sync.metres_per_unit(scene), atmosphere, np.float64)
+    return np.asarray(radiance) * f_ex + l_in
+
+
+@pytest.mark.parametrize("mode", ["COMPOSITOR", "PER_PIXEL"])
+@pytest.mark.parametrize("engine, tolerance", [("CYCLES", 2e-3), (EEVEE, 1e-2)])
+def test_precise_level_composites_the_physics(engine: str, tolerance: float, mode: str, tmp_path: Path) -> None:
+    """The Precise level end to end, the camera 3 km up (origin 2.5 km, raised 500 m): the composited pixels are
+    the baked table sampled by ``physics.precise.evaluate``. In Per Pixel mode the compositor fetches the texels
+    with Map UV nodes from the packed table image, its tile parameters driven from the scene."""
+    scene, sun = _render_scene(engine)
+    for name, radiance, distance, column, row in PLANES:
+        _emissive_plane(name, radiance, distance, column, row)
+    for obj in scene.objects:
+        if obj.type != "LIGHT":
+            obj.location.z += 500.0
+    scene.atmos.sky_enabled = False
+    scene.atmos.quality = "PRECISE"
+    scene.atmos.render_mode = mode
+    scene.atmos.origin_altitude = 2500.0
+    sun.rotation_euler = (math.radians(30), 0, math.radians(40))
+    bpy.context.view_layer.update()   # the sun's matrix, which the bake reads
+    effect.enable_effect(scene)
+    if mode == "PER_PIXEL":
+        per_pixel = bpy.data.node_groups["Atmos Aerial Composite (Per Pixel)"]
+        assert per_pixel["atmos_features"].endswith("+precise")
+        assert any(n.bl_idname == "CompositorNodeImage" and n.image is not None and n.image.packed_file
+                   for n in per_pixel.nodes)
+    pixels = _render(scene, tmp_path, f"{engine}_{mode}_precise")
+    for name, radiance, distance, column, row in PLANES:
+        expected = _expected_precise(scene, radiance, distance, column, row)
+        got = pixels[row, column]
+        print(f"precise {engine} {mode} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
+        assert np.allclose(got, expected, rtol=tolerance, atol=0), (engine, mode, name, got, expected)

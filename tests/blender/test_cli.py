@@ -202,8 +202,6 @@ def test_apply_with_a_quality_level(workdir: Path) -> None:
         (("render", "nocamera.blend", "--preset", "clear", "--output", "x.png"), ("no camera",)),
         (("render", "camera.blend", "--preset", "clear", "--engine", "eevee", "--mode", "in-render", "--output",
           "x.png"), ("--mode in-render", "Cycles")),
-        (("render", "camera.blend", "--preset", "clear", "--mode", "per-pixel", "--quality", "precise", "--output",
-          "x.png"), ("--mode per-pixel", "--quality precise")),
         (("presets", "show", "nope"), ("nope",)),
         (("presets", "validate", "camera.blend"), ("camera.blend",)),
     ],
