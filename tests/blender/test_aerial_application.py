@@ -499,12 +499,9 @@ def _expected_balanced(scene, radiance, distance: float, column: int, row: int) 
                                     sun_optical_depths=sun_optical_depths_ground(elevation, atmosphere)))
 
 
-@pytest.mark.parametrize("mode", ["COMPOSITOR", "PER_PIXEL"])
-@pytest.mark.parametrize("engine, tolerance", [("CYCLES", 2e-3), (EEVEE, 1e-2)])
-def test_balanced_level_composites_the_physics(engine: str, tolerance: float, mode: str, tmp_path: Path) -> None:
-    """An aircraft 3 km up (the origin altitude 2.5 km, the camera and the planes raised 500 m): the composited
-    pixels are ``physics.balanced``, far from Fast. The shader group takes the camera's altitude from the shading
-    point, the per-pixel group from the driven camera z."""
+def _aircraft_planes(engine: str, quality: str, mode: str):
+    """The planes seen from 3 km up (origin altitude 2.5 km, the camera and the planes raised 500 m), the sun at
+    60 deg from the zenith, the effect enabled at ``quality`` in ``mode``, no Atmos sky; the scene."""
     scene, sun = _render_scene(engine)
     for name, radiance, distance, column, row in PLANES:
         _emissive_plane(name, radiance, distance, column, row)
@@ -512,24 +509,38 @@ def test_balanced_level_composites_the_physics(engine: str, tolerance: float, mo
         if obj.type != "LIGHT":
             obj.location.z += 500.0
     scene.atmos.sky_enabled = False
-    scene.atmos.quality = "BALANCED"
+    scene.atmos.quality = quality
     scene.atmos.render_mode = mode
     scene.atmos.origin_altitude = 2500.0
     sun.rotation_euler = (math.radians(30), 0, math.radians(40))
+    bpy.context.view_layer.update()   # the sun's matrix, which the Precise bake reads
     effect.enable_effect(scene)
-    if mode == "PER_PIXEL":
-        per_pixel = bpy.data.node_groups["Atmos Aerial Composite (Per Pixel)"]
-        assert per_pixel["atmos_features"].endswith("+balanced")
-    else:
-        assert bpy.data.node_groups["Atmos Aerial Perspective"]["atmos_features"].endswith("+balanced")
-    pixels = _render(scene, tmp_path, f"{engine}_{mode}_balanced")
+    group = "Atmos Aerial Composite (Per Pixel)" if mode == "PER_PIXEL" else "Atmos Aerial Perspective"
+    assert bpy.data.node_groups[group]["atmos_features"].endswith(f"+{quality.lower()}")
+    return scene
+
+
+def _assert_planes_match(pixels: np.ndarray, expected_of, tolerance: float, what: str) -> None:
+    """Each of :data:`PLANES` is ``expected_of(radiance, distance, column, row)`` within ``tolerance``."""
     for name, radiance, distance, column, row in PLANES:
-        expected = _expected_balanced(scene, radiance, distance, column, row)
+        expected = expected_of(radiance, distance, column, row)
         got = pixels[row, column]
-        print(f"balanced {engine} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
-        assert np.allclose(got, expected, rtol=tolerance, atol=0), (engine, name, got, expected)
+        print(f"{what} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
+        assert np.allclose(got, expected, rtol=tolerance, atol=0), (what, name, got, expected)
+
+
+@pytest.mark.parametrize("mode", ["COMPOSITOR", "PER_PIXEL"])
+@pytest.mark.parametrize("engine, tolerance", [("CYCLES", 2e-3), (EEVEE, 1e-2)])
+def test_balanced_level_composites_the_physics(engine: str, tolerance: float, mode: str, tmp_path: Path) -> None:
+    """An aircraft 3 km up: the composited pixels are ``physics.balanced``, far from Fast. The shader group takes
+    the camera's altitude from the shading point, the per-pixel group from the driven camera z."""
+    scene = _aircraft_planes(engine, "BALANCED", mode)
+    pixels = _render(scene, tmp_path, f"{engine}_{mode}_balanced")
+    _assert_planes_match(pixels, lambda *plane: _expected_balanced(scene, *plane), tolerance,
+                         f"balanced {engine} {mode}")
+    for name, radiance, distance, column, row in PLANES[1:]:   # the levels differ here
         fast = _expected(scene, radiance, distance, column, row)
-        assert name == "Near" or np.max(np.abs(fast / expected - 1)) > 0.05  # the levels differ here
+        assert np.max(np.abs(fast / _expected_balanced(scene, radiance, distance, column, row) - 1)) > 0.05, name
 
 
 def _expected_precise(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
@@ -550,30 +561,14 @@ def _expected_precise(scene, radiance, distance: float, column: int, row: int) -
 @pytest.mark.parametrize("mode", ["COMPOSITOR", "PER_PIXEL"])
 @pytest.mark.parametrize("engine, tolerance", [("CYCLES", 2e-3), (EEVEE, 1e-2)])
 def test_precise_level_composites_the_physics(engine: str, tolerance: float, mode: str, tmp_path: Path) -> None:
-    """The Precise level end to end, the camera 3 km up (origin 2.5 km, raised 500 m): the composited pixels are
-    the baked table sampled by ``physics.precise.evaluate``. In Per Pixel mode the compositor fetches the texels
-    with Map UV nodes from the packed table image, its tile parameters driven from the scene."""
-    scene, sun = _render_scene(engine)
-    for name, radiance, distance, column, row in PLANES:
-        _emissive_plane(name, radiance, distance, column, row)
-    for obj in scene.objects:
-        if obj.type != "LIGHT":
-            obj.location.z += 500.0
-    scene.atmos.sky_enabled = False
-    scene.atmos.quality = "PRECISE"
-    scene.atmos.render_mode = mode
-    scene.atmos.origin_altitude = 2500.0
-    sun.rotation_euler = (math.radians(30), 0, math.radians(40))
-    bpy.context.view_layer.update()   # the sun's matrix, which the bake reads
-    effect.enable_effect(scene)
+    """The Precise level end to end from 3 km up: the composited pixels are the baked table sampled by
+    ``physics.precise.evaluate``. In Per Pixel mode the compositor fetches the texels with Map UV nodes from the
+    packed table image, its tile parameters driven from the scene."""
+    scene = _aircraft_planes(engine, "PRECISE", mode)
     if mode == "PER_PIXEL":
         per_pixel = bpy.data.node_groups["Atmos Aerial Composite (Per Pixel)"]
-        assert per_pixel["atmos_features"].endswith("+precise")
         assert any(n.bl_idname == "CompositorNodeImage" and n.image is not None and n.image.packed_file
                    for n in per_pixel.nodes)
     pixels = _render(scene, tmp_path, f"{engine}_{mode}_precise")
-    for name, radiance, distance, column, row in PLANES:
-        expected = _expected_precise(scene, radiance, distance, column, row)
-        got = pixels[row, column]
-        print(f"precise {engine} {mode} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
-        assert np.allclose(got, expected, rtol=tolerance, atol=0), (engine, mode, name, got, expected)
+    _assert_planes_match(pixels, lambda *plane: _expected_precise(scene, *plane), tolerance,
+                         f"precise {engine} {mode}")
