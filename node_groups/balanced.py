@@ -40,6 +40,10 @@ from .graph import GraphBuilder, Socket
 
 #: Straight pieces the curved ray is cut into (``physics.balanced.CURVATURE_PIECES``; a test checks they agree).
 PIECES = 4
+#: The Per Pixel variant (compositor): pieces and where each sees the sun (``physics.balanced.PER_PIXEL_PIECES``,
+#: ``PER_PIXEL_SUN_AT``; a test checks they agree).
+PER_PIXEL_PIECES = 8
+PER_PIXEL_SUN_AT = "middle"
 #: Below this, phi1 uses its series (``physics.aerial_perspective.SMALL_OPTICAL_DEPTH``).
 SMALL_OPTICAL_DEPTH = 1.0e-3
 #: Cap on the sun's gain exponent (``physics.balanced.MAX_SUN_OPTICAL_DEPTH``).
@@ -127,9 +131,11 @@ def piece_columns(g: GraphBuilder, end_a: tuple[Socket, Socket], end_b: tuple[So
 
 
 def balanced_terms(g: GraphBuilder, features, s: Socket, view: Socket, pieces: int = PIECES,
-                   camera_altitude: Socket | None = None) -> tuple[Socket, Socket]:
+                   camera_altitude: Socket | None = None, sun_at: str = "lower_end") -> tuple[Socket, Socket]:
     """(F_ex, L_in) of the Balanced model for a shading point at distance ``s`` (m) along ``view``, seen from a
     camera at ``camera_altitude`` (m, >= 0; None: from the shading point's position, :func:`ray_geometry`).
+    Each piece sees the sun at its lower end, or with ``sun_at="middle"`` at the mean of its ends' altitudes
+    (the Per Pixel variant: ``physics.balanced``'s docstring).
 
     ``features`` is an :class:`~.aerial_perspective.AerialFeatures`: without Mie scattering there is no phase
     function for the haze, without Mie scattering or absorption no haze column in the optical depth.
@@ -161,7 +167,10 @@ def balanced_terms(g: GraphBuilder, features, s: Socket, view: Socket, pieces: i
         scattered = g.scale(sigma_rayleigh, d_rayleigh, label=f"sigma_R D_R ({j})")
         if sigma_mie is not None:
             scattered = g.multiply_add(sigma_mie, d_mie, scattered, label=f"sigma_R D_R + sigma_M D_M ({j})")
-        thinned_r, thinned_m, _ = g.separate(g.sub((1.0, 1.0, 1.0), n_low), label=f"1 - n_lo ({j})")
+        if sun_at == "middle":
+            middle = g.max(g.mul(g.add(altitudes[j], altitudes[j + 1]), 0.5), 0.0, label=f"h_mid,{j}")
+            n_low = exp_xy(g, g.scale(inverse_heights, g.neg(middle)), label=f"n_mid,{j}")
+        thinned_r, thinned_m, _ = g.separate(g.sub((1.0, 1.0, 1.0), n_low), label=f"1 - n_sun ({j})")
         gain = g.scale(sun_depth_rayleigh, thinned_r)
         gain = g.multiply_add(sun_depth_mie, thinned_m, gain, label=f"sun gain ({j})")
         sun = g.mul(sun_irradiance, exp_per_channel(g, g.min(gain, (MAX_SUN_GAIN,) * 3), label="exp(gain)"),

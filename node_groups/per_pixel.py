@@ -13,7 +13,9 @@ and this compositor group evaluates, per pixel, the mean distance s = 1000 D / C
 
     F_ex, L_in = Fast:     eq. 19 on the layered virtual dome (``aerial_perspective.scattering_terms``)
                  Balanced: densities falling with altitude along the curved ray (``balanced.balanced_terms``),
-                           from the camera's altitude h0 = max(origin altitude + z_camera * metres per unit, 0)
+                           from the camera's altitude h0 = max(origin altitude + z_camera * metres per unit, 0),
+                           in its Per Pixel variant: 8 pieces, each seeing the sun at its middle altitude
+                           (``physics.balanced``: nodes are cheap here; the shader keeps 4 for Eevee)
                  Precise:  the frame's baked table (``precise.precise_terms``), its texels fetched by Map UV nodes
                            with nearest filtering and blended bilinearly in the graph, as the shader does
     T = C F_ex,  L = C L_in  ->  the "Atmos Aerial Composite" group: out = Image (T + max(1 - C, 0)) / k + L / k
@@ -39,14 +41,14 @@ import bpy
 
 from . import parameters
 from .aerial_perspective import AerialFeatures, scattering_terms
-from .balanced import balanced_terms
+from .balanced import PER_PIXEL_PIECES, PER_PIXEL_SUN_AT, balanced_terms
 from .precise import precise_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction
 from .graph import COMPOSITOR_SEPARATE_XYZ, ChannelGraphBuilder
 
 GROUP_NAME = "Atmos Aerial Composite (Per Pixel)"
 #: Bump when the tree changes; stale trees are rebuilt in place (the interface, and the drivers on it, stay).
-GROUP_VERSION = 3
+GROUP_VERSION = 4
 VERSION_KEY = "atmos_version"
 FEATURES_KEY = "atmos_features"
 
@@ -139,7 +141,8 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
         camera_z = group_in.outputs[CAMERA_SOCKET[0]]
         h0 = g.max(g.multiply_add(camera_z, g.attribute(parameters.METRES_PER_UNIT),
                                   g.attribute(parameters.ORIGIN_ALTITUDE)), 0.0, label="h0 (m)")
-        f_ex, l_in = balanced_terms(g, features, s, view, camera_altitude=h0)
+        f_ex, l_in = balanced_terms(g, features, s, view, pieces=PER_PIXEL_PIECES, camera_altitude=h0,
+                                    sun_at=PER_PIXEL_SUN_AT)
     elif features.level == "precise":   # the tile's camera altitude is a parameter: no camera input
         f_ex, l_in = precise_terms(g, features, s, view)
     else:

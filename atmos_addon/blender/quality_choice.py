@@ -112,7 +112,10 @@ def _resolve(scene, settings) -> str:
         sync._set_if_changed(settings, "status_quality", line)
         return level_of(settings)
     summary = summarize(scene)
-    level, error = choose_level(summary, tolerance=settings.auto_tolerance / 100.0)
+    from . import in_render
+
+    per_pixel = in_render.effective_mode(scene) == "PER_PIXEL"   # Balanced's Per Pixel variant is more accurate
+    level, error = choose_level(summary, tolerance=settings.auto_tolerance / 100.0, per_pixel=per_pixel)
     situations = ", ".join(name.replace("_", " ") for name in nearest_cases(summary))
     verdict = "within" if error <= settings.auto_tolerance / 100.0 else "best available, over"
     line = (f"Auto chose {level.value.capitalize()}: expected error {100.0 * error:.1f}% ({verdict} the "

@@ -57,6 +57,15 @@ Sun at altitude (optional)
 In-scattering is summed piece by piece (each piece's term attenuated by the pieces before it), which keeps
 the two species' scatterers where they are along the ray instead of spreading them over the whole of it.
 
+The Per Pixel variant
+    Per sample, the graph's size is what Eevee can compile (module ``node_groups.balanced``), so the shader keeps
+    4 pieces and the sun at each piece's lower end. Evaluated once per pixel in the compositor, nodes are cheap:
+    :data:`PER_PIXEL_PIECES` = 8 pieces with the sun at each piece's middle altitude (``sun_at="middle"``).
+    Against brute-force single scattering (``tools/bench_accuracy.py``, "balanced, per pixel"): the aircraft's
+    ray to the horizon 0.6 % instead of 7.3 %, every other case except the sunsets within 1.3 %. (With 4 pieces
+    the middle is worse at 150 km, 4.6 %, as measured above; with 8 the lower end still leaves 3.3 % on the
+    aircraft; 16 pieces at the lower end 1.9 %.)
+
 Units: lengths m, coefficients 1/m, radiance in the units of E_sun per steradian. Every step is cast to
 ``dtype`` so the float32 results are what a shader node tree computes; no step overflows in float32.
 """
@@ -73,6 +82,11 @@ from .phase import clamp_cosine, phase_hg, phase_rayleigh
 
 #: Straight pieces the curved ray is cut into (their ends lie on the parabola h0 + c t + k t^2).
 CURVATURE_PIECES = 4
+#: Where a piece sees the sun: its lower end, or its middle altitude (the mean of its ends').
+SUN_AT = ("lower_end", "middle")
+#: The Per Pixel variant (module docstring): pieces, and where each sees the sun.
+PER_PIXEL_PIECES = 8
+PER_PIXEL_SUN_AT = "middle"
 #: Cap on the ground sun optical depth and on the sun's gain exponent at altitude (exp(50) fits float32).
 MAX_SUN_OPTICAL_DEPTH = 50.0
 
@@ -177,7 +191,8 @@ def _optical_depth(d_r: np.ndarray, d_m: np.ndarray, atm: Atmosphere, dt: type) 
 
 
 def optical_depth_segment(h0_m: ArrayLike, cos_zenith: ArrayLike, distance_m: ArrayLike, atm: Atmosphere,
-                          dtype: DTypeLike = np.float64, curvature: bool = True) -> np.ndarray:
+                          dtype: DTypeLike = np.float64, curvature: bool = True, pieces: int = CURVATURE_PIECES
+                          ) -> np.ndarray:
     """Optical depth of the view ray from altitude ``h0_m`` over ``distance_m`` with zenith cosine c, (..., 3).
 
     tau = sum_i beta_ex,i D_i with the columns of :func:`density_columns`; plane-parallel closed form
@@ -185,15 +200,16 @@ def optical_depth_segment(h0_m: ArrayLike, cos_zenith: ArrayLike, distance_m: Ar
     ``cos_zenith`` may also be a direction (..., 3).
     """
     dt = np.dtype(dtype).type
-    d_r, d_m = density_columns(h0_m, cos_zenith, distance_m, atm, dt, curvature)
+    d_r, d_m = density_columns(h0_m, cos_zenith, distance_m, atm, dt, curvature, pieces)
     return _optical_depth(d_r, d_m, atm, dt)
 
 
 def extinction_balanced(h0_m: ArrayLike, view_dir_or_cos_zenith: ArrayLike, distance_m: ArrayLike,
-                        atm: Atmosphere, dtype: DTypeLike = np.float64, curvature: bool = True) -> np.ndarray:
+                        atm: Atmosphere, dtype: DTypeLike = np.float64, curvature: bool = True,
+                        pieces: int = CURVATURE_PIECES) -> np.ndarray:
     """Transmittance F_ex = exp(-tau) along the view ray, in [0, 1], shape (..., 3)."""
     dt = np.dtype(dtype).type
-    return np.exp(-optical_depth_segment(h0_m, view_dir_or_cos_zenith, distance_m, atm, dt, curvature))
+    return np.exp(-optical_depth_segment(h0_m, view_dir_or_cos_zenith, distance_m, atm, dt, curvature, pieces))
 
 
 def sun_optical_depths_ground(sun_elevation_rad: ArrayLike, atm: Atmosphere) -> tuple[np.ndarray, np.ndarray]:
@@ -232,7 +248,7 @@ def inscattering_balanced(h0_m: ArrayLike, view_dir_or_cos_zenith: ArrayLike, di
                           cos_theta: ArrayLike, atm: Atmosphere, sun_irradiance: ArrayLike,
                           dtype: DTypeLike = np.float64, curvature: bool = True,
                           sun_optical_depths: tuple[ArrayLike, ArrayLike] | None = None,
-                          pieces: int = CURVATURE_PIECES) -> np.ndarray:
+                          pieces: int = CURVATURE_PIECES, sun_at: str = "lower_end") -> np.ndarray:
     """In-scattered sunlight along the ray, summed over its pieces j (module docstring), shape (..., 3):
 
         L_in = sum_j exp(-tau_<j) E_sun,j (beta_R Phi_R D_R,j + beta_M,sc Phi_HG D_M,j) phi1(tau_j)
@@ -242,11 +258,17 @@ def inscattering_balanced(h0_m: ArrayLike, view_dir_or_cos_zenith: ArrayLike, di
     ``cos_theta`` = mu, the cosine between the view ray and the direction to the sun; ``sun_irradiance``
     the ground sun E_sun per channel ((3,) or (..., 3)). With ``sun_optical_depths`` (from
     :func:`sun_optical_depths_ground`) E_sun,j is E_sun raised to its value at the altitude of the
-    piece's lower end (:func:`sun_irradiance_at_altitude`); otherwise E_sun,j = E_sun. Radiance in the units of
+    piece's lower end, or with ``sun_at="middle"`` of the mean of its ends' altitudes (:func:`sun_irradiance_at_altitude`;
+    the Per Pixel variant, module docstring); otherwise E_sun,j = E_sun. Radiance in the units of
     E_sun per steradian, never negative.
     """
+    if sun_at not in SUN_AT:
+        raise ValueError(f"sun_at must be one of {SUN_AT}; got {sun_at!r}")
     dt = np.dtype(dtype).type
     columns, lows = piece_columns(h0_m, view_dir_or_cos_zenith, distance_m, atm, dt, curvature, pieces)
+    if sun_at == "middle":
+        ends, _ = _ray_pieces(h0_m, view_dir_or_cos_zenith, distance_m, atm, dt, curvature, pieces)
+        lows = [dt(0.5) * (a + b) for a, b in zip(ends[:-1], ends[1:])]   # clamped at the ground below
     mu = clamp_cosine(cos_theta, dt)
     mu = np.broadcast_to(mu, np.broadcast_shapes(mu.shape, columns[0][0].shape))
     phase_r = atm.rayleigh_scattering.astype(dt) * phase_rayleigh(mu, dt)[..., np.newaxis]

@@ -32,7 +32,8 @@ Auto rule (:func:`choose_level`)
        if views reach beyond 30 km or the geometry spans more than 500 m of altitude, ground vista
        otherwise), plus the low-sun cases when the sun is below 5 deg or animated.
     2. The expected error of a level is the largest measured pixel error (max over rays and channels,
-       :data:`MEASURED_PIXEL_ERROR`) over those situations.
+       :data:`MEASURED_PIXEL_ERROR`) over those situations; in Per Pixel mode Balanced is its Per Pixel variant
+       (:data:`MEASURED_PIXEL_ERROR_PER_PIXEL`, ``physics.balanced.PER_PIXEL_PIECES``).
     3. The cheapest implemented level whose expected error is within the tolerance wins; if none is, the
        implemented level with the smallest expected error.
     A scene without haze (``mie_zero``) or absorption uses the same measured errors: the haze, with its
@@ -49,7 +50,8 @@ import numpy as np
 
 from .aerial_perspective import extinction, inscattering
 from .atmosphere import Atmosphere
-from .balanced import extinction_balanced, inscattering_balanced, sun_optical_depths_ground
+from .balanced import (CURVATURE_PIECES, PER_PIXEL_PIECES, PER_PIXEL_SUN_AT, extinction_balanced,
+                       inscattering_balanced, sun_optical_depths_ground)
 from .precise import bake_tile
 from .precise import evaluate as evaluate_precise
 from .reference import single_scattering
@@ -204,12 +206,13 @@ def bench_case(name: str) -> BenchCase:
         raise ValueError(f"unknown bench case {name!r}; expected one of {sorted(_CASES_BY_NAME)}") from None
 
 
-def evaluate(level: Level, case: BenchCase, dtype=np.float64, sun_at_altitude: bool = True
-             ) -> tuple[np.ndarray, np.ndarray]:
+def evaluate(level: Level, case: BenchCase, dtype=np.float64, sun_at_altitude: bool = True,
+             per_pixel: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(F_ex, L_in) of ``level`` for the case's rays, each (n, 3).
 
     ``sun_at_altitude`` (Balanced only, default on) raises E_sun to its value at the altitude of each piece
-    of the ray; ``False`` keeps the ground E_sun of the slides (the bench reports both).
+    of the ray; ``False`` keeps the ground E_sun of the slides (the bench reports both). ``per_pixel`` (Balanced
+    only): the Per Pixel variant (``physics.balanced.PER_PIXEL_PIECES`` pieces, the sun at their middles).
     """
     atm, views, s = case.atmosphere, case.view_dirs, case.distances_m
     mu = views @ case.sun_dir
@@ -219,8 +222,10 @@ def evaluate(level: Level, case: BenchCase, dtype=np.float64, sun_at_altitude: b
     if level is Level.BALANCED:
         taus = sun_optical_depths_ground(np.radians(case.sun_elevation_deg), atm) if sun_at_altitude else None
         h0 = case.camera_altitude_m
-        return (extinction_balanced(h0, views, s, atm, dtype),
-                inscattering_balanced(h0, views, s, mu, atm, e_sun, dtype, sun_optical_depths=taus))
+        pieces, sun_at = (PER_PIXEL_PIECES, PER_PIXEL_SUN_AT) if per_pixel else (CURVATURE_PIECES, "lower_end")
+        return (extinction_balanced(h0, views, s, atm, dtype, pieces=pieces),
+                inscattering_balanced(h0, views, s, mu, atm, e_sun, dtype, sun_optical_depths=taus, pieces=pieces,
+                                      sun_at=sun_at))
     if level is Level.PRECISE:
         return evaluate_precise(precise_tile(case), views, case.sun_dir, s, atm, dtype)
     raise ValueError(f"unknown quality level {level!r}; expected one of {[lv.value for lv in Level]}")
@@ -253,12 +258,13 @@ def relative_error(value: np.ndarray, ref: np.ndarray, floor: float) -> np.ndarr
     return np.abs(value - ref) / np.maximum(np.abs(ref), floor)
 
 
-def errors(level: Level, case: BenchCase, sun_at_altitude: bool = True) -> dict[str, np.ndarray]:
+def errors(level: Level, case: BenchCase, sun_at_altitude: bool = True, per_pixel: bool = False
+           ) -> dict[str, np.ndarray]:
     """Max and mean relative errors per channel (3,) of F_ex, L_in and the pixel L0 F_ex + L_in.
 
     Keys ``f_ex_max``, ``f_ex_mean``, ``l_in_max``, ``l_in_mean``, ``pixel_max``, ``pixel_mean``.
     """
-    f_ex, l_in = evaluate(level, case, sun_at_altitude=sun_at_altitude)
+    f_ex, l_in = evaluate(level, case, sun_at_altitude=sun_at_altitude, per_pixel=per_pixel)
     f_ref, l_ref = reference(case)
     l0 = case.surface_radiance
     pixel, pixel_ref = l0 * f_ex + l_in, l0 * f_ref + l_ref
@@ -301,6 +307,20 @@ MEASURED_PIXEL_ERROR: dict[tuple[Level, str], float] = {
 }
 
 
+#: Max pixel error of Balanced as the Per Pixel mode evaluates it (``physics.balanced.PER_PIXEL_PIECES`` pieces,
+#: the sun at their middles), per case, from ``tools/bench_accuracy.py`` (a test checks it as well).
+MEASURED_PIXEL_ERROR_PER_PIXEL: dict[str, float] = {
+    "ground_vista": 0.0011,
+    "distant_range": 0.0123,
+    "drone": 0.0000,
+    "aircraft": 0.0064,
+    "sunset_toward": 0.1574,
+    "sunset_away": 0.4378,
+    "mars_noon": 0.0004,
+    "mars_sunset": 0.3360,
+}
+
+
 @dataclass(frozen=True)
 class SceneSummary:
     """What the Auto choice needs to know about a scene (lengths m, angles deg)."""
@@ -332,20 +352,23 @@ def nearest_cases(summary: SceneSummary) -> tuple[str, ...]:
     return (geometry, "sunset_toward", "sunset_away") if low_sun else (geometry,)
 
 
-def expected_error(level: Level, summary: SceneSummary) -> float:
-    """Largest measured pixel error of ``level`` over the situations standing for ``summary``."""
+def expected_error(level: Level, summary: SceneSummary, per_pixel: bool = False) -> float:
+    """Largest measured pixel error of ``level`` over the situations standing for ``summary`` (``per_pixel``:
+    as the Per Pixel mode evaluates it)."""
+    if per_pixel and level is Level.BALANCED:
+        return max(MEASURED_PIXEL_ERROR_PER_PIXEL[name] for name in nearest_cases(summary))
     return max(MEASURED_PIXEL_ERROR[(level, name)] for name in nearest_cases(summary))
 
 
-def choose_level(summary: SceneSummary, tolerance: float = 0.02) -> tuple[Level, float]:
+def choose_level(summary: SceneSummary, tolerance: float = 0.02, per_pixel: bool = False) -> tuple[Level, float]:
     """(level, expected relative pixel error): the cheapest implemented level within ``tolerance``.
 
     If no implemented level meets it, the one with the smallest expected error (rule 3). Only
-    :data:`IMPLEMENTED_LEVELS` are considered.
+    :data:`IMPLEMENTED_LEVELS` are considered; ``per_pixel``: the levels as the Per Pixel mode evaluates them.
     """
     if not tolerance > 0.0:
         raise ValueError(f"choose_level: tolerance must be a relative error > 0 (e.g. 0.02); got {tolerance!r}")
-    expected = [(level, expected_error(level, summary)) for level in IMPLEMENTED_LEVELS]
+    expected = [(level, expected_error(level, summary, per_pixel)) for level in IMPLEMENTED_LEVELS]
     for level, error in expected:
         if error <= tolerance:
             return level, error

@@ -484,8 +484,10 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
 
 
 def _expected_balanced(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
-    """L0 F_ex + L_in of ``physics.balanced`` for the scene's camera (origin altitude + its z)."""
-    from atmos_addon.physics.balanced import extinction_balanced, inscattering_balanced, sun_optical_depths_ground
+    """L0 F_ex + L_in of ``physics.balanced`` for the scene's camera (origin altitude + its z), in the variant of
+    the scene's mode (Per Pixel: 8 pieces, the sun at their middles)."""
+    from atmos_addon.physics.balanced import (CURVATURE_PIECES, PER_PIXEL_PIECES, PER_PIXEL_SUN_AT,
+                                              extinction_balanced, inscattering_balanced, sun_optical_depths_ground)
 
     atmosphere = sync.atmosphere_from_settings(scene.atmos)
     sun_dir, _ = sync.sun_direction(scene)
@@ -494,9 +496,12 @@ def _expected_balanced(scene, radiance, distance: float, column: int, row: int) 
     metres = distance * sync.metres_per_unit(scene)
     view = np.array(_pixel_direction(column, row))
     h0 = scene.atmos.origin_altitude + scene.camera.location.z * sync.metres_per_unit(scene)
-    return (np.asarray(radiance) * extinction_balanced(h0, view, metres, atmosphere)
+    per_pixel = scene.atmos.render_mode == "PER_PIXEL"
+    pieces, sun_at = (PER_PIXEL_PIECES, PER_PIXEL_SUN_AT) if per_pixel else (CURVATURE_PIECES, "lower_end")
+    return (np.asarray(radiance) * extinction_balanced(h0, view, metres, atmosphere, pieces=pieces)
             + inscattering_balanced(h0, view, metres, float(view @ sun_dir), atmosphere, e_sun,
-                                    sun_optical_depths=sun_optical_depths_ground(elevation, atmosphere)))
+                                    sun_optical_depths=sun_optical_depths_ground(elevation, atmosphere),
+                                    pieces=pieces, sun_at=sun_at))
 
 
 def _aircraft_planes(engine: str, quality: str, mode: str):

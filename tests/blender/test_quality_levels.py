@@ -15,7 +15,8 @@ import pytest
 
 import atmos_addon
 from atmos_addon.blender import effect, in_render, quality_choice
-from atmos_addon.physics.balanced import CURVATURE_PIECES, sun_optical_depths_ground
+from atmos_addon.physics.balanced import (CURVATURE_PIECES, PER_PIXEL_PIECES, PER_PIXEL_SUN_AT,
+                                          sun_optical_depths_ground)
 from atmos_addon.physics.quality import SceneSummary
 from node_groups import balanced as balanced_nodes
 from render_utils import emission_material
@@ -52,6 +53,7 @@ def _scene(camera_z: float = 2.0, far: float = 3000.0):
 
 def test_node_and_physics_piece_counts_agree():
     assert balanced_nodes.PIECES == CURVATURE_PIECES
+    assert (balanced_nodes.PER_PIXEL_PIECES, balanced_nodes.PER_PIXEL_SUN_AT) == (PER_PIXEL_PIECES, PER_PIXEL_SUN_AT)
 
 
 def test_quality_switch_edits_the_same_group_and_materials_keep_it():
