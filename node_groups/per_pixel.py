@@ -121,7 +121,7 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
     _ensure_interface(tree)
     group_in = tree.nodes.new("NodeGroupInput")
     inputs = {}
-    for name, socket_name, size in PARAMETER_SOCKETS + PRECISE_SOCKETS:
+    for name, socket_name, size in PARAMETER_SOCKETS + (PRECISE_SOCKETS if features.level == "precise" else ()):
         socket = group_in.outputs[socket_name]
         if size == 3:
             split = tree.nodes.new(COMPOSITOR_SEPARATE_XYZ)
