@@ -483,6 +483,37 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     assert not list(scene.view_layers[0].aovs)
 
 
+def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_again() -> None:
+    """A file saved by the first Per Pixel version (stop 18: eight parameter inputs, Fast only): the next sync
+    rebuilds the group in place with today's inputs, and the group node gets a valid driver on every one."""
+    from node_groups import per_pixel
+
+    scene = bpy.context.scene
+    mesh_object("Thing", user_material())
+    scene.camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(scene.camera)
+    scene.atmos.render_mode = "PER_PIXEL"
+    scene.atmos.quality = "BALANCED"
+    effect.enable_effect(scene)
+    tree = compositor._current_tree(scene)
+    group = bpy.data.node_groups[per_pixel.GROUP_NAME]
+    old_inputs = 4 + 8   # Image, Coverage, Distance, View and the eight parameters of the first version
+    for item in [i for i in group.interface.items_tree if i.item_type == "SOCKET" and i.in_out == "INPUT"][old_inputs:]:
+        group.interface.remove(item)
+    for curve in [c for c in tree.animation_data.drivers if int(c.data_path.split("inputs[")[1].split("]")[0])
+                  >= old_inputs]:
+        tree.animation_data.drivers.remove(curve)
+    group[per_pixel.VERSION_KEY] = 1
+    sync.sync_scene(scene)
+    assert group[per_pixel.VERSION_KEY] == per_pixel.GROUP_VERSION and bpy.data.node_groups[per_pixel.GROUP_NAME] == group
+    node = tree.nodes[compositor.COMPOSITE_NODE]
+    drivers = [c for c in tree.animation_data.drivers if c.data_path.startswith(f'nodes["{node.name}"]')]
+    assert len(drivers) == 3 * 9 + 3 + 1 and all(c.driver.is_valid for c in drivers)
+    scene.camera.location.z = 123.0
+    scene.frame_set(scene.frame_current)
+    assert node.inputs[per_pixel.CAMERA_SOCKET[0]].default_value == pytest.approx(123.0)
+
+
 def _expected_balanced(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
     """L0 F_ex + L_in of ``physics.balanced`` for the scene's camera (origin altitude + its z), in the variant of
     the scene's mode (Per Pixel: 8 pieces, the sun at their middles)."""
