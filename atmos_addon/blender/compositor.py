@@ -297,10 +297,11 @@ def _drive_parameters(node, scene) -> None:
 
 
 def revalidate_drivers(scene) -> None:
-    """Clear the "invalid" flag of the per-pixel group nodes' drivers in ``scene``. A driver whose property did not
-    exist yet when it was last evaluated (the Precise tile parameters, written by the table bake after the group
-    node was driven) is flagged and skipped from then on, in this session and in the saved file; the bake calls
-    this once the properties exist."""
+    """Clear the "invalid" flag of the per-pixel group nodes' drivers in ``scene``. A driver whose target did not
+    exist when it was last evaluated is flagged and skipped from then on, in this session and in the saved file:
+    the Precise tile parameters, written by the table bake after the group node was driven (the bake calls this
+    once they exist), and the camera's z in a scene that had no camera (the depsgraph handler calls this when
+    the camera changes)."""
     tree = _current_tree(scene)
     animation = None if tree is None else tree.animation_data
     if animation is None:

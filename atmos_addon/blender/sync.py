@@ -208,7 +208,12 @@ def sync_scene(scene) -> None:
         in_render.sync_domes(scene, atmosphere, metres_per_unit(scene))
     _sync_sun_lamp(scene, lamp, elevation_rad, (colour, strength, diameter), enabled=enabled)
     _last_sun_matrix[scene.name] = _matrix_key(lamp)
-    _last_camera_z[scene.name] = _camera_z(scene)
+    camera_z = _camera_z(scene)
+    if camera_z != _last_camera_z.get(scene.name, camera_z):
+        from . import compositor
+
+        compositor.revalidate_drivers(scene)   # a Per Pixel camera driver that failed without a camera reads again
+    _last_camera_z[scene.name] = camera_z
     from . import precise_tables
 
     if enabled and precise_tables.uses_precise(scene):
@@ -291,9 +296,10 @@ def on_depsgraph_update(scene, depsgraph) -> None:
         sync_scene(scene)
     elif _camera_z(scene) != _last_camera_z.get(scene.name, _camera_z(scene)):   # the Precise tables follow it
         _last_camera_z[scene.name] = _camera_z(scene)
-        from . import precise_tables
+        from . import compositor, precise_tables
 
         precise_tables.follow(scene)
+        compositor.revalidate_drivers(scene)   # a Per Pixel camera driver that failed without a camera reads again
     counts = (len(bpy.data.materials), len(scene.objects))
     if _last_counts.get(scene.name) != counts:
         _last_counts[scene.name] = counts

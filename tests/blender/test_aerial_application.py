@@ -514,6 +514,28 @@ def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_ag
     assert node.inputs[per_pixel.CAMERA_SOCKET[0]].default_value == pytest.approx(123.0)
 
 
+def test_the_per_pixel_camera_driver_picks_up_a_camera_added_after_enabling() -> None:
+    """Enabled without a camera, the camera-z driver fails and Blender flags it invalid for good (saved so in the
+    file); adding a camera makes the depsgraph handler clear the flag, so the group reads the camera's z."""
+    from node_groups import per_pixel
+
+    scene = bpy.context.scene
+    scene.camera = None
+    mesh_object("Thing", user_material())
+    scene.atmos.render_mode = "PER_PIXEL"
+    scene.atmos.quality = "BALANCED"
+    effect.enable_effect(scene)
+    scene.frame_set(scene.frame_current)
+    node = compositor._current_tree(scene).nodes[compositor.COMPOSITE_NODE]
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    camera.location.z = 50.0
+    scene.camera = camera
+    bpy.context.view_layer.update()   # the depsgraph handler sees the new camera
+    scene.frame_set(scene.frame_current)
+    assert node.inputs[per_pixel.CAMERA_SOCKET[0]].default_value == pytest.approx(50.0)
+
+
 def _expected_balanced(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
     """L0 F_ex + L_in of ``physics.balanced`` for the scene's camera (origin altitude + its z), in the variant of
     the scene's mode (Per Pixel: 8 pieces, the sun at their middles)."""
