@@ -208,12 +208,7 @@ def sync_scene(scene) -> None:
         in_render.sync_domes(scene, atmosphere, metres_per_unit(scene))
     _sync_sun_lamp(scene, lamp, elevation_rad, (colour, strength, diameter), enabled=enabled)
     _last_sun_matrix[scene.name] = _matrix_key(lamp)
-    camera_z = _camera_z(scene)
-    if camera_z != _last_camera_z.get(scene.name, camera_z):
-        from . import compositor
-
-        compositor.revalidate_drivers(scene)   # a Per Pixel camera driver that failed without a camera reads again
-    _last_camera_z[scene.name] = camera_z
+    _note_camera(scene)
     from . import precise_tables
 
     if enabled and precise_tables.uses_precise(scene):
@@ -227,6 +222,20 @@ def sync_scene(scene) -> None:
 def _camera_z(scene) -> float | None:
     """The scene camera's world z (the Precise tables depend on its altitude), None without a camera."""
     return None if scene.camera is None else round(float(scene.camera.matrix_world.translation.z), 6)
+
+
+def _note_camera(scene) -> bool:
+    """Record the camera's z; True when it changed since the last call. A change also clears the "invalid" flag
+    of the Per Pixel group node's drivers: a camera driver that failed while the scene had no camera reads again
+    (:func:`.compositor.revalidate_drivers`)."""
+    camera_z = _camera_z(scene)
+    changed = camera_z != _last_camera_z.get(scene.name, camera_z)
+    _last_camera_z[scene.name] = camera_z
+    if changed:
+        from . import compositor
+
+        compositor.revalidate_drivers(scene)
+    return changed
 
 
 def sky_features_from_settings(settings):
@@ -294,12 +303,10 @@ def on_depsgraph_update(scene, depsgraph) -> None:
         return
     if _matrix_key(sun_object(scene)) != _last_sun_matrix.get(scene.name):
         sync_scene(scene)
-    elif _camera_z(scene) != _last_camera_z.get(scene.name, _camera_z(scene)):   # the Precise tables follow it
-        _last_camera_z[scene.name] = _camera_z(scene)
-        from . import compositor, precise_tables
+    elif _note_camera(scene):   # the Precise tables follow the camera
+        from . import precise_tables
 
         precise_tables.follow(scene)
-        compositor.revalidate_drivers(scene)   # a Per Pixel camera driver that failed without a camera reads again
     counts = (len(bpy.data.materials), len(scene.objects))
     if _last_counts.get(scene.name) != counts:
         _last_counts[scene.name] = counts
