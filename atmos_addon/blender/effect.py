@@ -64,7 +64,7 @@ def _status(scene, report: Report) -> None:
         item.reason = reason
 
 
-def _evaluations_in_use(scene) -> tuple[str, ...]:
+def evaluations_in_use(scene) -> tuple[str, ...]:
     """The compositor evaluations ("COMPOSITOR", "PER_PIXEL") of ``scene`` and the file's other enabled scenes:
     the shared surface group holds the AOV outputs of each (:func:`.materials.ensure_surface_group`)."""
     modes = {in_render.effective_mode(scene)}
@@ -79,7 +79,7 @@ def _apply_materials(scene, *, only_new: bool) -> Report:
         result = in_render.inject_scene(scene, sync.ensure_group(scene), only_new=only_new)
     else:
         result = materials.inject_scene(scene, sync.ensure_group(scene), only_new=only_new,
-                                        evaluations=_evaluations_in_use(scene))
+                                        evaluations=evaluations_in_use(scene))
     report = Report(
         managed=result.managed,
         skipped=result.skipped,

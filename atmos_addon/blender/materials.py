@@ -183,9 +183,6 @@ def _populate_surface_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> 
     nodes.clear()
     group_in = nodes.new("NodeGroupInput")
     group_in.location = (-500, -250)
-    aerial = nodes.new("ShaderNodeGroup")
-    aerial.node_tree = aerial_group
-    aerial.location = (-500, 0)
     one_minus = nodes.new("ShaderNodeMath")
     one_minus.operation = "SUBTRACT"
     one_minus.inputs[0].default_value = 1.0
@@ -197,10 +194,12 @@ def _populate_surface_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> 
     alpha.location = (-50, -250)
     links.new(group_in.outputs["Opacity"], alpha.inputs[0])
     links.new(one_minus.outputs[0], alpha.inputs[1])
-    per_sample = (("Transmittance", AOV_TRANSMITTANCE), ("Inscattering", AOV_INSCATTERING))
-    if "COMPOSITOR" not in evaluations:
-        nodes.remove(aerial)
-        per_sample = ()
+    per_sample = ()
+    if "COMPOSITOR" in evaluations:
+        aerial = nodes.new("ShaderNodeGroup")
+        aerial.node_tree = aerial_group
+        aerial.location = (-500, 0)
+        per_sample = (("Transmittance", AOV_TRANSMITTANCE), ("Inscattering", AOV_INSCATTERING))
     for index, (output, aov_name) in enumerate(per_sample):
         scale = nodes.new("ShaderNodeVectorMath")
         scale.operation = "SCALE"
@@ -287,8 +286,21 @@ def ensure_surface_group(aerial_group, evaluations=("COMPOSITOR",)):
     if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
         _surface_group_interface(tree)
     if not _is_populated(tree, aerial_group, evaluations):
+        inner = _inner_groups(tree)
         _populate_surface_group(tree, aerial_group, evaluations)
+        _remove_unused(inner)   # the aerial group, when the Compositor mode's outputs left
     return tree
+
+
+def _inner_groups(tree) -> set:
+    return {node.node_tree for node in tree.nodes if node.bl_idname == "ShaderNodeGroup" and node.node_tree}
+
+
+def _remove_unused(groups) -> None:
+    """Delete the Atmos groups among ``groups`` that nothing uses any more (no orphans left in the file)."""
+    for group in groups:
+        if group.users == 0 and group.name.startswith(PREFIX):
+            bpy.data.node_groups.remove(group)
 
 
 def _stand_in():
@@ -424,8 +436,6 @@ def remove_surface_group() -> None:
     tree = bpy.data.node_groups.get(SURFACE_GROUP)
     if tree is None or tree.users != 0:
         return
-    inner = {node.node_tree for node in tree.nodes if node.bl_idname == "ShaderNodeGroup" and node.node_tree}
+    inner = _inner_groups(tree)
     bpy.data.node_groups.remove(tree)
-    for group in inner:
-        if group.users == 0 and group.name.startswith(PREFIX):
-            bpy.data.node_groups.remove(group)
+    _remove_unused(inner)

@@ -205,6 +205,14 @@ def remove(scene) -> None:
         bpy.data.images.remove(image)
 
 
+def free_buffers() -> None:
+    """Drop the table image's pixel buffer (and GPU texture) so the next read decodes the packed data. An undo step
+    restores the packed data and the bake key but not the buffer Blender keeps in memory."""
+    image = bpy.data.images.get(node_groups().precise.IMAGE_NAME)
+    if image is not None and image.packed_file is not None:
+        image.buffers_free()
+
+
 def describe() -> str:
     """One line for reports: how many tiles the table image holds."""
     image = bpy.data.images.get(node_groups().precise.IMAGE_NAME)

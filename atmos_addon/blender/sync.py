@@ -101,17 +101,23 @@ def _set_if_changed(settings, name: str, value: str) -> None:
 
 def ensure_group(scene):
     """Get or (re)build the group the scene's materials use, for its feature set and mode: the aerial
-    perspective group (Compositor and Per Pixel modes; Per Pixel also gets its compositor group) or the "Atmos
-    In-Render Surface" group (In-Render mode)."""
-    from . import in_render
+    perspective group (Compositor mode) or the "Atmos In-Render Surface" group (In-Render mode). In the Per Pixel
+    mode the compositor group evaluates the atmosphere and the materials need no shader group: the aerial group is
+    returned only when another enabled scene's Compositor mode uses it (None otherwise), so none is built for nothing
+    (at Balanced it is a thousand nodes)."""
+    from . import effect, in_render
 
     aerial = node_groups().aerial_perspective
     features = features_from_settings(scene.atmos)
     mode = in_render.effective_mode(scene)
     if mode == "IN_RENDER":
         group = node_groups().in_render.ensure_surface_group(features)
-    else:
+    elif mode == "COMPOSITOR":
         group = aerial.ensure_aerial_perspective_group(features)
+    else:
+        group = bpy.data.node_groups.get(aerial.GROUP_NAME)
+        if group is None and "COMPOSITOR" in effect.evaluations_in_use(scene):
+            group = aerial.ensure_aerial_perspective_group(features)
     built = aerial.describe_features(features)
     if mode == "PER_PIXEL":
         from . import compositor
@@ -314,9 +320,8 @@ def on_depsgraph_update(scene, depsgraph) -> None:
         group_integrity.stamp_new()
 
 
-@persistent
-def on_load_post(*_args) -> None:
-    """After a file loads: rebuild stale node groups and re-sync every scene with the effect on."""
+def _resync_all() -> None:
+    """Drop every cache and re-sync every scene with the effect on (stale node groups are rebuilt)."""
     forget()
     group_integrity.invalidate()
     for scene in bpy.data.scenes:
@@ -326,9 +331,34 @@ def on_load_post(*_args) -> None:
             _last_counts[scene.name] = (len(bpy.data.materials), len(scene.objects))
 
 
+@persistent
+def on_load_post(*_args) -> None:
+    """After a file loads: rebuild stale node groups and re-sync every scene with the effect on."""
+    _resync_all()
+
+
+@persistent
+def on_undo_redo(*_args) -> None:
+    """After an undo or redo step, which restores the file's data from memory (memfile undo).
+
+    - Our caches describe the state undone from: they are dropped and every enabled scene re-synced. A step can
+      hold parameters older than its lamp (in the UI a transform pushes its step before the depsgraph handler
+      writes the sun's parameters), which the sun-matrix cache would otherwise take as current.
+    - Blender keeps image buffers across undo, so the Precise table would keep the pixels of the state undone from
+      while its packed data and bake key are restored: its buffer is freed (read again from the packed data)
+      before the re-sync compares bake keys.
+    """
+    from . import precise_tables
+
+    precise_tables.free_buffers()
+    _resync_all()
+
+
 HANDLERS = (
     (bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
     (bpy.app.handlers.load_post, on_load_post),
+    (bpy.app.handlers.undo_post, on_undo_redo),
+    (bpy.app.handlers.redo_post, on_undo_redo),
 )
 
 

@@ -183,6 +183,7 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
     background.location = (x - 200.0, y - 320.0)
     tree.links.new(sky.outputs[0], background.inputs["Color"])
     tree.links.new(background.outputs["Background"], surface)
+    _remove_unused_lighting_groups()   # that of a world deleted since the last install: the new one takes its name
     _add_lighting_branch(tree, features, background)
     scene[STATE_KEY] = state
     return f"Sky: in world '{world.name}'" + (" (created)" if "created_world" in state else "")
@@ -234,11 +235,18 @@ def remove_unused_sky_group() -> None:
     """Delete the "Atmos Sky" node group and lighting groups once no world uses them (no orphan data left)."""
     from .sync import node_groups
 
-    groups = node_groups()
-    for group in list(bpy.data.node_groups):
-        if group.users == 0 and (group.name == groups.sky.SKY_GROUP_NAME
-                                 or groups.sky_lighting.is_sky_lighting_group(group)):
-            bpy.data.node_groups.remove(group)
+    _remove_unused_lighting_groups()
+    sky = bpy.data.node_groups.get(node_groups().sky.SKY_GROUP_NAME)
+    if sky is not None and sky.users == 0:
+        bpy.data.node_groups.remove(sky)
+
+
+def _remove_unused_lighting_groups() -> None:
+    from .sync import node_groups
+
+    module = node_groups().sky_lighting
+    for group in [g for g in bpy.data.node_groups if g.users == 0 and module.is_sky_lighting_group(g)]:
+        bpy.data.node_groups.remove(group)
 
 
 def _table_key(atmosphere) -> str:

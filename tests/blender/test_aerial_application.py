@@ -456,12 +456,14 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     assert {n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV"} == {
         "atmos_coverage", "atmos_distance", "atmos_view"}
     assert not any(n.bl_idname == "ShaderNodeGroup" for n in surface.nodes)
+    assert "Atmos Aerial Perspective" not in bpy.data.node_groups   # nothing uses the shader group: none is kept
     other = bpy.data.scenes.new("Other")   # a second enabled scene in the Compositor mode: the group holds both
     other.camera = scene.camera
     other.collection.objects.link(bpy.data.objects["Thing"])
     effect.enable_effect(other)
     assert {n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV"} == {
         "atmos_coverage", "atmos_distance", "atmos_view", "atmos_transmittance", "atmos_inscattering"}
+    assert bpy.data.node_groups["Atmos Aerial Perspective"].users == 1
     effect.disable_effect(other)
     bpy.data.scenes.remove(other)
     scene["atmos_sun_irradiance"] = (1.0, 2.0, 3.0)   # what sync writes; the driver reads it
