@@ -69,6 +69,9 @@ BALANCED_PARAMETER_NAMES = (ORIGIN_ALTITUDE, SUN_OPTICAL_DEPTH_RAYLEIGH, SUN_OPT
 #: The parameters only the Precise level reads (written by the add-on's table bake, keyed with constant
 #: interpolation when the camera or the sun moves, never by :func:`keyframe_shader_parameters`).
 PRECISE_PARAMETER_NAMES = (PRECISE_TILE, PRECISE_SCALE, PRECISE_ATLAS)
+#: The parameters that change with the sun (its direction and what its elevation sets): the only ones an animated
+#: sun's bake keys per frame. The others follow the settings, so a slider edit is not overridden by old keys.
+SUN_PARAMETER_NAMES = (SUN_DIRECTION, SUN_IRRADIANCE, SUN_OPTICAL_DEPTH_RAYLEIGH, SUN_OPTICAL_DEPTH_MIE)
 #: Every parameter name, in the order of :func:`write_shader_parameters`' arguments, then the Precise ones.
 PARAMETER_NAMES = (*AERIAL_PARAMETER_NAMES, SUN_ANGULAR_RADIUS, SUN_LIMB_DARKENING, GROUND_ALBEDO,
                    *PRECISE_PARAMETER_NAMES)
@@ -194,10 +197,12 @@ def read_shader_parameters(scene: bpy.types.Scene) -> dict[str, tuple[float, ...
     return {name: (_as_tuple(scene[name]) if name in scene else None) for name in PARAMETER_NAMES}
 
 
-def keyframe_shader_parameters(scene: bpy.types.Scene, frame: float | None = None) -> None:
-    """Insert a keyframe on every stored parameter at ``frame`` (the current frame by default)."""
+def keyframe_shader_parameters(scene: bpy.types.Scene, frame: float | None = None,
+                               names: tuple[str, ...] = SUN_PARAMETER_NAMES) -> None:
+    """Insert a keyframe on the stored parameters ``names`` (default: those that change with the sun) at ``frame``
+    (the current frame by default)."""
     frame = scene.frame_current if frame is None else frame
-    for name in PARAMETER_NAMES:
+    for name in names:
         if name in scene and name not in PRECISE_PARAMETER_NAMES:
             scene.keyframe_insert(f'["{name}"]', frame=frame)
 

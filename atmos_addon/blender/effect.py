@@ -135,7 +135,9 @@ def enable_effect(scene) -> Report:
     if in_render_mode:
         report.messages.extend(in_render.install(scene, sync.features_from_settings(scene.atmos),
                                                  sync.atmosphere_of(scene), sync.metres_per_unit(scene)))
-    if sun_lamp.bake_sun_animation(scene):
+    if not sun_lamp.is_bake_current(scene):   # usually baked by sync_scene already (sun_lamp.follow)
+        sun_lamp.bake_sun_animation(scene)
+    if scene.get(sun_lamp.BAKED_KEY) is not None:
         report.messages.append(f"Animated sun: baked to keyframes for frames {scene.frame_start}-{scene.frame_end}")
     if precise_tables.uses_precise(scene):
         precise_tables.bake(scene)   # a no-op when sync_scene just baked the same inputs

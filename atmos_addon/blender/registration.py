@@ -22,5 +22,6 @@ def unregister() -> None:
     cli_command.unregister()
     sync.remove_handlers()
     precise_tables.cancel_pending()
+    sun_lamp.cancel_pending()
     for cls in reversed(CLASSES):
         bpy.utils.unregister_class(cls)

@@ -223,6 +223,10 @@ def sync_scene(scene) -> None:
         precise_tables.remove(scene)
         for name in node_groups().parameters.PRECISE_PARAMETER_NAMES:
             del scene[name]
+    if enabled:
+        from . import sun_lamp
+
+        sun_lamp.follow(scene)   # an animated sun's keys: re-baked when the settings or its animation changed
 
 
 def _camera_z(scene) -> float | None:
@@ -313,6 +317,10 @@ def on_depsgraph_update(scene, depsgraph) -> None:
         from . import precise_tables
 
         precise_tables.follow(scene)
+    elif any(depsgraph.id_type_updated(kind) for kind in ("ACTION", "OBJECT", "SCENE")):
+        from . import sun_lamp
+
+        sun_lamp.follow(scene)   # keys edited at other frames, a parent or a target moved, the frame range changed
     counts = (len(bpy.data.materials), len(scene.objects))
     if _last_counts.get(scene.name) != counts:
         _last_counts[scene.name] = counts

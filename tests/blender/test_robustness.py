@@ -417,6 +417,50 @@ def test_farm_renders_the_per_pixel_mode_of_a_setting_sun(quality: str, tmp_path
     _assert_farm_renders_frames_as_the_session(tmp_path, session, (1, 3))
 
 
+def test_edits_after_enabling_an_animated_sun_are_baked_and_reach_the_farm(tmp_path: Path) -> None:
+    """With an animated sun, every frame's sun parameters are keys. A slider moved, a sun key edited and a longer
+    frame range after enabling re-bake them (the keys of before would otherwise override the slider at every other
+    frame and in renders); only the sun's parameters are keyed; a farm renders the edited animation."""
+    from atmos_addon.blender import sun_lamp as lamp_module
+    from atmos_addon.physics import sun_irradiance_ground
+
+    scene = bpy.context.scene
+    _three_frames_of_a_setting_sun(scene, climbing_camera=False)
+    effect.enable_effect(scene)
+    sun = sync.sun_object(scene)
+    keyed = {c.data_path for c in lamp_module._baked_fcurves(scene)}
+    assert keyed == {'["atmos_sun_direction"]', '["atmos_sun_irradiance"]', '["atmos_sun_optical_depth_rayleigh"]',
+                     '["atmos_sun_optical_depth_mie"]'}
+
+    def assert_frame_follows_the_settings(frame: int) -> None:
+        scene.frame_set(frame)
+        direction = lamp_direction(sun)
+        np.testing.assert_allclose(scene["atmos_sun_direction"], direction, atol=1e-6)
+        atmosphere = sync.atmosphere_of(scene)
+        np.testing.assert_allclose(scene["atmos_beta_mie"], atmosphere.mie_scattering, rtol=1e-6)
+        expected = sun_irradiance_ground(math.asin(direction[2]), atmosphere, 0.0,
+                                         0.5 * scene.atmos.sun_angular_diameter)
+        np.testing.assert_allclose(scene["atmos_sun_irradiance"], expected, rtol=1e-5)
+
+    scene.atmos.mie_scattering_per_km = (0.08, 0.08, 0.08)   # a slider, at frame 1
+    assert_frame_follows_the_settings(3)
+    scene.frame_set(3)                                        # a sun key edited at frame 3
+    sun.rotation_euler = (math.radians(60.0), 0.0, math.radians(-40.0))
+    sun.keyframe_insert("rotation_euler", frame=3)
+    bpy.context.view_layer.update()
+    scene.frame_set(1)
+    assert_frame_follows_the_settings(3)
+    scene.frame_end = 4                                        # a longer range
+    bpy.context.view_layer.update()
+    assert all(len(c.keyframe_points) == 4 for c in lamp_module._baked_fcurves(scene))
+    assert lamp_module.is_bake_current(scene)
+    session = {}
+    for frame in (1, 3):
+        scene.frame_set(frame)
+        session[frame] = render_utils.render_to_array(scene)
+    _assert_farm_renders_frames_as_the_session(tmp_path, session, (1, 3))
+
+
 def test_every_view_layer_gets_the_atmosphere_and_disable_restores_them() -> None:
     """Two view layers, a Render Layers node for each in the user's compositor: both layers declare the AOVs,
     each Render Layers node gets its own combining group, a render of both is finite and hazed, and disabling
