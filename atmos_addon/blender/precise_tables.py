@@ -19,6 +19,7 @@ import bpy
 import numpy as np
 
 from ..physics.precise import DEFAULT_SHAPE, Tile, bake_tile
+from .debounce import Debounced
 
 #: Largest texture side GPUs accept (OpenGL's usual GL_MAX_TEXTURE_SIZE), px.
 MAX_TEXTURE_SIZE = 16384
@@ -248,28 +249,18 @@ def follow(scene) -> None:
     if bpy.app.background:
         bake(scene)
         return
-    _pending.add(scene.name)
-    if bpy.app.timers.is_registered(_bake_pending):
-        bpy.app.timers.unregister(_bake_pending)
-    bpy.app.timers.register(_bake_pending, first_interval=DEBOUNCE_S)
+    _later.request(scene)
 
 
-#: Seconds after the last change before an interactive re-bake.
-DEBOUNCE_S = 0.3
-_pending: set[str] = set()
+def _bake_if_still(scene) -> None:
+    if uses_precise(scene) and not moves(scene):
+        bake(scene)
 
 
-def _bake_pending():
-    for name in sorted(_pending):
-        scene = bpy.data.scenes.get(name)
-        if scene is not None and uses_precise(scene) and not moves(scene):
-            bake(scene)
-    _pending.clear()
-    return None
+#: An interactive re-bake, 0.3 s after the last change.
+_later = Debounced(_bake_if_still)
 
 
 def cancel_pending() -> None:
     """Drop queued re-bakes and their timer (unregister)."""
-    _pending.clear()
-    if bpy.app.timers.is_registered(_bake_pending):
-        bpy.app.timers.unregister(_bake_pending)
+    _later.cancel()

@@ -23,6 +23,7 @@ from mathutils import Euler, Matrix
 
 from ..physics import sun_color_and_strength
 from . import sync
+from .debounce import Debounced
 
 #: Name of the lamp :func:`ensure_sun_lamp` creates when the scene has none.
 CREATED_SUN_NAME = "Atmos Sun"
@@ -276,9 +277,6 @@ def is_bake_current(scene: bpy.types.Scene) -> bool:
     return baked.get("inputs") == bake_inputs(scene)
 
 
-#: Seconds after the last change before an interactive re-bake.
-REBAKE_DELAY_S = 0.3
-_pending: set[str] = set()
 _baking: set[str] = set()
 
 
@@ -286,18 +284,15 @@ def follow(scene: bpy.types.Scene) -> None:
     """After a sync or an edit: re-bake the sun's keys when their inputs changed (:func:`bake_inputs`): a slider, an
     edited sun animation or a new frame range would otherwise be overridden by the old keys at every other frame
     and in renders. At once in the background (scripts, the CLI; an animated Precise scene's tables too), else
-    :data:`REBAKE_DELAY_S` after the last change, so a slider drag bakes once (the sun's keys only: re-baking the
-    per-frame Precise tables takes about 0.5 s a frame, so the UI leaves them to Refresh). Cheap when current (one
-    digest of a few objects' animation)."""
+    0.3 s after the last change (:class:`.debounce.Debounced`), so a slider drag bakes once (the sun's keys only:
+    re-baking the per-frame Precise tables takes about 0.5 s a frame, so the UI leaves them to Refresh). Cheap when
+    current (one digest of a few objects' animation)."""
     if scene.name in _baking or is_bake_current(scene):
         return
     if bpy.app.background:
         rebake(scene)
         return
-    _pending.add(scene.name)
-    if bpy.app.timers.is_registered(_bake_pending):
-        bpy.app.timers.unregister(_bake_pending)
-    bpy.app.timers.register(_bake_pending, first_interval=REBAKE_DELAY_S)
+    _later.request(scene)
 
 
 def rebake(scene: bpy.types.Scene, *, precise: bool = True) -> int:
@@ -311,21 +306,17 @@ def rebake(scene: bpy.types.Scene, *, precise: bool = True) -> int:
     return frames
 
 
-def _bake_pending():
-    for name in sorted(_pending):
-        scene = bpy.data.scenes.get(name)
-        if scene is not None and getattr(scene, "atmos", None) is not None and scene.atmos.enabled:
-            if not is_bake_current(scene):
-                rebake(scene, precise=False)   # interactive: Refresh re-bakes the per-frame Precise tables
-    _pending.clear()
-    return None
+def _rebake_if_stale(scene: bpy.types.Scene) -> None:
+    if getattr(scene, "atmos", None) is not None and scene.atmos.enabled and not is_bake_current(scene):
+        rebake(scene, precise=False)   # interactive: Refresh re-bakes the per-frame Precise tables
+
+
+_later = Debounced(_rebake_if_stale)
 
 
 def cancel_pending() -> None:
     """Drop queued re-bakes and their timer (unregister)."""
-    _pending.clear()
-    if bpy.app.timers.is_registered(_bake_pending):
-        bpy.app.timers.unregister(_bake_pending)
+    _later.cancel()
 
 
 def bake_sun_animation(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int | None = None) -> int:

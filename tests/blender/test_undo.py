@@ -20,22 +20,14 @@ import bpy
 import numpy as np
 import pytest
 
-import atmos_addon
 from atmos_addon.blender import materials, sync
 
+from test_robustness import addon  # noqa: F401  (autouse: a factory-fresh file with the add-on registered)
 from test_robustness import (compositor_state, lamp_direction, mesh_object, orphan_groups, small_scene, snapshot,
                              user_compositor, user_material)
 
 SETTINGS = ("enabled", "quality", "render_mode", "sky_enabled", "drive_sun_lamp", "rayleigh_scattering_per_km",
             "mie_scattering_per_km", "mie_absorption_per_km", "mie_g", "distance_scale", "status_sun")
-
-
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    atmos_addon.register()
-    yield
-    atmos_addon.unregister()
 
 
 def _plain(value):
