@@ -137,7 +137,7 @@ def _emits(tree, seen=None) -> bool:
 
 def _new_node(tree, bl_idname: str, x: float, y: float):
     node = tree.nodes.new(bl_idname)
-    materials._place_last(tree.nodes, x, y)
+    materials.place_last(tree.nodes, x, y)
     return node
 
 
@@ -156,10 +156,7 @@ def inject(material, surface_group) -> None:
     materials.remove(material)
     tree = material.node_tree
     nodes = tree.nodes
-    x = y = 0.0
-    if len(nodes):
-        x = max(node.location.x + node.width for node in nodes) + 200.0
-        y = max(node.location.y for node in nodes)
+    x, y = materials.free_spot(nodes)
     user_output = _cycles_output(tree)
     opacity_socket, opacity_value, invert = materials._opacity(tree)
     group = _new_node(tree, "ShaderNodeGroup", x, y)

@@ -72,7 +72,13 @@ class MaterialReport:
     objects_without_material: list[str] = field(default_factory=list)
 
 
+#: Blender 5.0 materials always use their nodes (``Material.use_nodes`` reads True, deprecated, gone in 6.0).
+_ALWAYS_NODES = bpy.app.version >= (5, 0, 0)
+
+
 def _uses_nodes(material) -> bool:
+    if _ALWAYS_NODES:
+        return material.node_tree is not None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         return bool(material.use_nodes) and material.node_tree is not None
@@ -315,7 +321,34 @@ def _stand_in():
     return tree
 
 
-def _place_last(nodes, x: float, y: float) -> None:
+def _remove_stand_in(tree) -> None:
+    """Delete the stand-in once the remap has moved its users away.
+
+    With no users and nothing used by it (an interface, no nodes), the unlink pass of a plain remove,
+    which visits every data-block of the file (44 ms with 30 000 of them), has nothing to do and is skipped.
+    """
+    if tree.users:
+        bpy.data.node_groups.remove(tree)
+    else:
+        bpy.data.node_groups.remove(tree, do_unlink=False, do_id_user=False, do_ui_user=False)
+
+
+def free_spot(nodes) -> tuple[float, float]:
+    """Where a new node goes: 200 units right of the rightmost of ``nodes``, level with the highest ((0, 0) if none).
+
+    Read with ``foreach_get``: no Python object per node (a third of the Python time of a 5.0 enable went to
+    reading each node's location and width one by one).
+    """
+    count = len(nodes)
+    if not count:
+        return 0.0, 0.0
+    locations, widths = [0.0] * (2 * count), [0.0] * count
+    nodes.foreach_get("location", locations)
+    nodes.foreach_get("width", widths)
+    return max(map(float.__add__, locations[0::2], widths)) + 200.0, max(locations[1::2])
+
+
+def place_last(nodes, x: float, y: float) -> None:
     """Move the last node of ``nodes`` to (x, y) without an RNA update.
 
     Blender 4.2-4.5 answer every node property write with a node-tree update that scans every tree in
@@ -328,24 +361,21 @@ def _place_last(nodes, x: float, y: float) -> None:
     nodes.foreach_set("location", locations)
 
 
-def inject(material, surface_group) -> None:
+def inject(material, surface_group, tagged=None) -> None:
     """Add the Atmos surface group node to one node-based, editable material (idempotent).
 
     The node sits to the right of the user's nodes; where the surface has an alpha path its opacity
     (or transparency) socket is also linked to the group -- a new link from a user output, never a
-    change to the user's links or values.
+    change to the user's links or values. ``tagged``: the material's Atmos nodes, when the caller has
+    just listed them (they are replaced).
     """
-    for node in atmos_nodes(material):
-        material.node_tree.nodes.remove(node)
     tree = material.node_tree
-    nodes = tree.nodes
-    x = y = 0.0
-    if len(nodes):
-        x = max(node.location.x + node.width for node in nodes) + 200.0
-        y = max(node.location.y for node in nodes)
+    for node in atmos_nodes(material) if tagged is None else tagged:
+        tree.nodes.remove(node)
     opacity_socket, opacity_value, invert = _opacity(tree)
-    node = nodes.new("ShaderNodeGroup")
-    _place_last(nodes, x, y)
+    x, y = free_spot(tree.nodes)
+    node = tree.nodes.new("ShaderNodeGroup")
+    place_last(tree.nodes, x, y)
     node.label = NODE_LABEL
     node[TAG] = 1
     node.node_tree = surface_group
@@ -389,18 +419,19 @@ def inject_scene(scene, aerial_group, *, only_new: bool = False, evaluations=("C
             report.skipped.append((material.name, reason))
             continue
         report.managed.append(material.name)
-        if not (only_new and is_injected(material)):
-            todo.append(material)
+        tagged = atmos_nodes(material)
+        if not (only_new and any(node.bl_idname == "ShaderNodeGroup" for node in tagged)):
+            todo.append((material, tagged))
     if not todo and bpy.data.node_groups.get(SURFACE_GROUP) is None:
         return report  # nothing to inject: no group with zero users left in the file
     surface_group = ensure_surface_group(aerial_group, evaluations)
     target = _stand_in() if len(todo) > BULK_THRESHOLD else surface_group
-    for material in todo:
-        inject(material, target)
+    for material, tagged in todo:
+        inject(material, target, tagged)
         report.injected.append(material.name)
     if target is not surface_group:
         target.user_remap(surface_group)
-        bpy.data.node_groups.remove(target)
+        _remove_stand_in(target)
     return report
 
 
@@ -421,7 +452,7 @@ def remove_all(materials) -> list[str]:
     if stand_in is not None:
         if stand_in.users:  # materials outside this pass keep the real group
             stand_in.user_remap(surface_group)
-        bpy.data.node_groups.remove(stand_in)
+        _remove_stand_in(stand_in)
     return stripped
 
 
