@@ -42,8 +42,10 @@ STATE_KEY = "atmos_compositor"
 COMPOSITE_NODE = "Atmos Aerial Composite"
 CREATED_TREE_NAME = "Atmos Compositor"
 AOVS = ((AOV_TRANSMITTANCE, "COLOR"), (AOV_INSCATTERING, "COLOR"), (AOV_COVERAGE, "VALUE"))
-#: The Per Pixel mode's AOVs (``node_groups.per_pixel``): the atmosphere is evaluated in the compositor.
-PER_PIXEL_AOVS = ((AOV_COVERAGE, "VALUE"), (AOV_DISTANCE, "VALUE"), (AOV_VIEW, "COLOR"))
+#: The Per Pixel mode's AOVs (``node_groups.per_pixel``): the atmosphere is evaluated in the compositor. A colour
+#: AOV comes first: Eevee in Blender 5.2 writes 0 into the first AOV of a view layer when that one is a Value AOV
+#: (measured in a GUI Blender 5.2.2, viewport and final render, ``tools/verify_viewport.py``; not in 4.2-5.0).
+PER_PIXEL_AOVS = ((AOV_VIEW, "COLOR"), (AOV_COVERAGE, "VALUE"), (AOV_DISTANCE, "VALUE"))
 #: How the compositor applies the effect: "COMPOSITOR" (per-sample AOVs combined) or "PER_PIXEL" (evaluated here).
 EVALUATIONS = ("COMPOSITOR", "PER_PIXEL")
 
@@ -159,6 +161,14 @@ def declare_aovs(scene, state: dict, aovs=AOVS) -> None:
                 aov.type = kind
                 added.append(f"{layer.name}\t{name}")
     state["added_aovs"] = added
+
+
+def value_aov_leads(scene, state: dict) -> bool:
+    """True when a view layer's first AOV is a Value AOV that Atmos added (a file saved before PER_PIXEL_AOVS put
+    the colour AOV first): Blender 5.2's Eevee would write 0 into it."""
+    added = set(state.get("added_aovs", []))
+    return any(len(layer.aovs) and layer.aovs[0].type == "VALUE" and f"{layer.name}\t{layer.aovs[0].name}" in added
+               for layer in scene.view_layers)
 
 
 def remove_aovs(scene, state: dict) -> None:
@@ -337,7 +347,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
         raise ValueError(f"evaluation must be one of {EVALUATIONS}; got {evaluation!r}")
     messages: list[str] = []
     installed = installed_evaluation(scene)
-    if installed == evaluation:
+    if installed == evaluation and not value_aov_leads(scene, scene[STATE_KEY].to_dict()):
         if evaluation == "PER_PIXEL":
             ensure_per_pixel_group(features)
         return messages  # already installed: idempotent

@@ -431,7 +431,36 @@ def test_per_pixel_names_agree_between_the_materials_and_the_compositor_group() 
     assert (materials.AOV_DISTANCE, materials.AOV_VIEW) == (per_pixel.AOV_DISTANCE, per_pixel.AOV_VIEW)
     assert materials.DISTANCE_AOV_UNIT_M == per_pixel.DISTANCE_AOV_UNIT_M
     assert materials.METRES_PER_UNIT == parameters.METRES_PER_UNIT
-    assert [aov for _, aov, _ in per_pixel.IMAGE_INPUTS[1:]] == [name for name, _ in compositor.PER_PIXEL_AOVS]
+    assert sorted(aov for _, aov, _ in per_pixel.IMAGE_INPUTS[1:]) == sorted(name for name, _ in
+                                                                           compositor.PER_PIXEL_AOVS)
+
+
+def test_per_pixel_declares_a_colour_aov_first_and_reorders_a_file_that_did_not() -> None:
+    """Blender 5.2's Eevee writes 0 into a view layer's first AOV when it is a Value AOV (measured in a GUI 5.2.2,
+    tools/verify_viewport.py: Per Pixel rendered as if the effect were off). The Per Pixel AOVs start with the colour
+    one, and Refresh reinstalls a file saved with the coverage first, restoring the user's compositor links."""
+    scene = bpy.context.scene
+    mesh_object("Thing", user_material())
+    scene.atmos.render_mode = "PER_PIXEL"
+    effect.enable_effect(scene)
+    layer = scene.view_layers[0]
+    assert [(aov.name, aov.type) for aov in layer.aovs] == [("atmos_view", "COLOR"), ("atmos_coverage", "VALUE"),
+                                                             ("atmos_distance", "VALUE")]
+    assert not compositor.value_aov_leads(scene, scene[compositor.STATE_KEY].to_dict())
+    view = layer.aovs["atmos_view"]   # what an earlier version declared: coverage, distance, view
+    layer.aovs.remove(view)
+    view = layer.aovs.add()
+    view.name, view.type = "atmos_view", "COLOR"
+    assert compositor.value_aov_leads(scene, scene[compositor.STATE_KEY].to_dict())
+    effect.refresh_effect(scene)
+    assert layer.aovs[0].name == "atmos_view" and len(layer.aovs) == 3
+    tree = compositor._current_tree(scene)
+    node = tree.nodes[compositor.COMPOSITE_NODE]
+    linked = {link.to_socket.name: link.from_socket.name for link in tree.links if link.to_node == node}
+    assert linked == {"Image": "Image", "Coverage": "atmos_coverage", "Distance": "atmos_distance",
+                      "View": "atmos_view"}
+    effect.disable_effect(scene)
+    assert len(layer.aovs) == 0
 
 
 def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() -> None:
