@@ -11,6 +11,9 @@ from atmos_addon.physics.balanced import (density_columns, extinction_balanced, 
 from atmos_addon.physics.phase import phase_hg
 from atmos_addon.presets import load
 
+#: numpy 2.0 renamed trapz to trapezoid; numpy 2.5 (beside bpy 5.3) has no trapz. Blender 4.2-5.0 use numpy 1.26.
+_trapezoid = np.trapezoid if hasattr(np, "trapezoid") else np.trapz
+
 EARTH = Atmosphere()
 MARS = load("mars").atmosphere
 E_SUN = np.array([3.9, 3.8, 3.5])
@@ -24,7 +27,7 @@ def _altitude(h0, c, t, radius):
 def _column_quadrature(h0, c, s, height, radius=None, n=200001):
     t = np.linspace(0.0, s, n)
     h = h0 + c * t if radius is None else _altitude(h0, c, t, radius)
-    return np.trapz(np.exp(-np.maximum(h, 0.0) / height), t)
+    return _trapezoid(np.exp(-np.maximum(h, 0.0) / height), t)
 
 
 def test_infinite_scale_heights_give_the_fast_model():

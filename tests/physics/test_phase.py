@@ -6,6 +6,9 @@ import pytest
 
 from atmos_addon.physics import Atmosphere, inscattering, phase_hg, phase_rayleigh
 
+#: numpy 2.0 renamed trapz to trapezoid; numpy 2.5 (beside bpy 5.3) has no trapz. Blender 4.2-5.0 use numpy 1.26.
+_trapezoid = np.trapezoid if hasattr(np, "trapezoid") else np.trapz
+
 
 def _sphere_integral(phase, n=20001):
     """2 pi * integral of phase(mu) over [-1, 1], on meshes graded geometrically toward mu = +-1."""
@@ -13,7 +16,7 @@ def _sphere_integral(phase, n=20001):
     total = 0.0
     for pole in (1.0, -1.0):
         mu = pole * (1.0 - gap)
-        total += np.trapz(phase(mu), gap)
+        total += _trapezoid(phase(mu), gap)
     return 2.0 * np.pi * total
 
 
