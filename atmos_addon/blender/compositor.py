@@ -51,6 +51,9 @@ EVALUATIONS = ("COMPOSITOR", "PER_PIXEL")
 
 #: Blender 5.0 replaced scene.node_tree / use_nodes by scene.compositing_node_group.
 GROUP_API = "compositing_node_group" in bpy.types.Scene.bl_rna.properties
+#: Blender 5.3 composites through a stack of effects (scene.compositor_effects); compositing_node_group, deprecated
+#: there, is the active effect's group, and setting it on a scene without effects creates one.
+EFFECT_STACK = "compositor_effects" in bpy.types.Scene.bl_rna.properties
 
 
 def _silently(function, *args):
@@ -194,12 +197,14 @@ def _tag(node, name: str):
 def _scene_tree(scene, state: dict):
     """The scene's compositor tree, created (and recorded for removal) when there is none."""
     if GROUP_API:
-        state.setdefault("had_group", scene.compositing_node_group is not None)
-        tree = scene.compositing_node_group
+        tree = _current_tree(scene)
+        state.setdefault("had_group", tree is not None)
         if tree is None:
+            if EFFECT_STACK:
+                state.setdefault("effects_before", [effect.name for effect in scene.compositor_effects])
             tree = bpy.data.node_groups.new(CREATED_TREE_NAME, "CompositorNodeTree")
             tree[TAG] = 1
-            scene.compositing_node_group = tree
+            _silently(setattr, scene, "compositing_node_group", tree)
         return tree
     state.setdefault("use_nodes", bool(_silently(getattr, scene, "use_nodes")))
     had_tree = scene.node_tree is not None
@@ -426,7 +431,7 @@ def _installed_nodes(scene) -> list:
 
 def _current_tree(scene):
     if GROUP_API:
-        return scene.compositing_node_group
+        return _silently(getattr, scene, "compositing_node_group")
     return scene.node_tree
 
 
@@ -458,9 +463,13 @@ def uninstall(scene) -> None:
                         tree.interface.remove(item)
                         break
             if tree.get(TAG) and not state.get("had_group", True):
-                scene.compositing_node_group = None
+                _silently(setattr, scene, "compositing_node_group", None)
                 if not len(tree.nodes) and tree.users == 0:
                     bpy.data.node_groups.remove(tree)
+                if EFFECT_STACK and "effects_before" in state:   # the effect that setting the group created
+                    for effect in [e for e in scene.compositor_effects if e.name not in state["effects_before"]
+                                   and e.node_group is None]:
+                        scene.compositor_effects.remove(effect)
     if not GROUP_API and "use_nodes" in state:
         scene.use_nodes = bool(state["use_nodes"])
     remove_aovs(scene, state)

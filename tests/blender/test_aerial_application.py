@@ -192,8 +192,9 @@ _user_compositor = user_compositor
 
 def _compositor_state(scene) -> tuple:
     if IS_5:
-        tree = scene.compositing_node_group
-        return (tree.name if tree else None, snapshot(tree) if tree else None, scene.render.use_compositing)
+        tree = compositor._current_tree(scene)
+        effects = [(e.name, e.node_group) for e in scene.compositor_effects] if compositor.EFFECT_STACK else None
+        return (tree.name if tree else None, snapshot(tree) if tree else None, scene.render.use_compositing, effects)
     return (_quiet(getattr, scene, "use_nodes"), snapshot(scene.node_tree) if scene.node_tree else None,
             scene.render.use_compositing)
 
