@@ -28,6 +28,7 @@ DOC = REPO_ROOT / "docs" / "benchmarks.md"
 ROWS = (
     ("build_s", "build the scene (not Atmos)", None),
     ("enable_s", "enable", 1000.0),
+    ("enable_cpu_s", "enable, CPU time of the process", 1000.0),
     ("sync_small_ms", "parameter change -> sync, {small} materials (ms per update)", 5.0),
     ("sync_big_ms", "parameter change -> sync, {materials} materials (ms per update)", 5.0),
     ("preset_ms", "preset load + apply_atmosphere, enabled ({materials} materials)", 20.0),
@@ -63,7 +64,9 @@ def run_one(python: str, args: argparse.Namespace) -> dict:
     return json.loads(lines[-1])
 
 
-def _cell(key: str, value: float) -> str:
+def _cell(key: str, value: float | None) -> str:
+    if value is None:
+        return "-"
     return f"{value * 1000.0:.0f} ms" if key.endswith("_s") else f"{value:.2f} ms"
 
 
@@ -73,7 +76,7 @@ def markdown(results: list[dict], args: argparse.Namespace, command: str) -> str
     for key, label, target in ROWS:
         label = label.format(materials=args.materials, small=args.small)
         target_text = "" if target is None else (f"< {target:g} ms" if target < 100 else f"< {target / 1000:g} s")
-        lines.append(f"| {label} | {target_text} | " + " | ".join(_cell(key, r[key]) for r in results) + " |")
+        lines.append(f"| {label} | {target_text} | " + " | ".join(_cell(key, r.get(key)) for r in results) + " |")
     return "\n".join(lines)
 
 
@@ -131,26 +134,33 @@ NOTES = """## What the numbers say
 - **Parameter changes** cost the same with 10 or 5000 materials: a sync writes seven scene custom
   properties (plus the sun lamp and the world's sky values) and never touches a material.
 - **Enable** is dominated by adding one group node per material. Per material two RNA edits remain,
-  `nodes.new` and the `node.node_tree` write (about 33 and 35 us each in 5.0; the location is written
-  with `nodes.foreach_set`, which skips the node-tree update), then one `user_remap` swaps the real
-  group in for all materials at once (about 0.24 s in 5.0 for 5000 materials and 20000 objects).
-  Blender 4.2-4.5 answer each of those two edits with a node-tree update that scans every node tree in
-  the file (about 0.17 ms each with 5000 materials, growing with the material count): O(N^2) overall,
-  and no update-free form exists in the Python API. Tried and dropped: assigning the real group
-  directly (5.0: 2.0 s instead of 0.77 s for the material pass), emptying the real group during the pass
-  and refilling it (2.2 s: every refill edit updates all 5000 users), a stand-in group with an output
-  socket (4.2: no change), reading the node positions with one `foreach_get` (no measurable change).
-- **Node groups**: the aerial and sky groups (about 330 nodes) were laid out with one `node.location`
-  write per node, each an update; the layout is now computed in Python and written with one
-  `foreach_set` per group (with 5000 materials in the file: 5.0 0.28 s -> 0.16 s, 4.2 0.50 s -> 0.34 s for
-  building both groups).
+  `nodes.new` and the `node.node_tree` write; every other access is a read (node locations and widths with
+  one `foreach_get` each, the new location with one `foreach_set`, which skips the node-tree update), and
+  one `user_remap` swaps the real group in for all materials at once (0.18-0.25 s with 5000 materials and
+  20000 objects). The empty stand-in group is then removed without Blender's unlink pass, which visits every
+  data-block of the file and has nothing to unlink there (44 ms -> 0).
+- **Why 4.2 is over the target**: `tools/bench_node_edits.py` times the two edits against the file's size.
+  4.2.23: 47 and 43 us per edit with 1000 materials, 389 and 382 us with 5000; 4.5.15 and 5.0.1: 24-32 us at
+  both sizes. `perf record` of the 4.2 wheel (it ships its symbol table) puts the time in
+  `NodeTreeRelations::ensure_all_trees`, called by the node-tree updater for every edited tree to find its
+  owner: a map of every node tree in the file, rebuilt on every update. So on 4.2 an edit costs O(node trees in
+  the file) and an enable O(N^2), and every Python way to add a node to a material goes through that update
+  (`nodes.new`, `links.new`, a `node_tree` or socket `default_value` write; only `foreach_set` of plain values
+  skips it). With two edits per material the floor is 2 x 5000 x 0.38 ms, about 3.8 s, on this machine.
+  Blender 4.5 and 5.0 look the owner up directly: the same enable takes about 1 s there.
+- Tried and dropped: assigning the real group directly (5.0: 2.0 s instead of 0.77 s for the material pass:
+  a group holding AOV outputs makes its group node an output, and each edit then updates every tree that
+  uses the group), emptying the real group during the pass and refilling it (2.2 s: every refill edit updates
+  all 5000 users), a stand-in group with an output socket (4.2: no change).
+- **Node groups**: the aerial and sky groups (about 330 nodes) are laid out in Python and written with one
+  `foreach_set` per group.
 - **Disable** is one `nodes.remove` per material: the same per-edit scan in 4.2.
-- The numbers move by up to 2x with other work on the machine (see the load average above; the
-  2 cores were shared with a test suite while this table was taken). An A/B of the enable alone, same
-  load, two runs each, CPU time (`time.process_time`): 5.0 1.23-1.29 s before these changes, 1.08-1.11 s
-  after; 4.2 about 3.0 s either way (its noise is larger than the 0.16 s saved). On a quieter machine the
-  current code measured 1001 ms (5.0) and 2572 ms (4.2), and the code before it 1319 ms and 2975 ms.
-  The target of 1 s is met on 5.0 only on a quiet machine, and not on 4.2.
+- The numbers move by up to 2x with other work on the machine (see the load average above), and between days
+  on the same quiet machine: stop 20 measured the 10-material sync at 0.84 ms and 5.0's enable at 964-968 ms;
+  stop 21's two runs, load average below 1, 2.3-3.2 ms and 1.14-1.25 s with the same sync code and a leaner enable. The CPU
+  row (`time.process_time` of the enable) counts every thread of the process. An A/B of the material pass alone
+  (`materials.inject_scene`, 5000 materials, three alternating runs each, the same machine and hour): 1151-1194 ms
+  before stop 21's changes, 984-1053 ms after.
 """
 
 

@@ -44,7 +44,8 @@ CREATED_TREE_NAME = "Atmos Compositor"
 AOVS = ((AOV_TRANSMITTANCE, "COLOR"), (AOV_INSCATTERING, "COLOR"), (AOV_COVERAGE, "VALUE"))
 #: The Per Pixel mode's AOVs (``node_groups.per_pixel``): the atmosphere is evaluated in the compositor. A colour
 #: AOV comes first: Eevee in Blender 5.2 writes 0 into the first AOV of a view layer when that one is a Value AOV
-#: (measured in a GUI Blender 5.2.2, viewport and final render, ``tools/verify_viewport.py``; not in 4.2-5.0).
+#: (measured in a GUI Blender 5.2.2, viewport and final render, ``tools/verify_viewport.py``, and with the bpy 5.2.3
+#: wheel, where ``test_per_pixel_mode_composites_the_physics[EEVEE]`` fails with that order; not in 4.2-5.0 or 5.3.0).
 PER_PIXEL_AOVS = ((AOV_VIEW, "COLOR"), (AOV_COVERAGE, "VALUE"), (AOV_DISTANCE, "VALUE"))
 #: How the compositor applies the effect: "COMPOSITOR" (per-sample AOVs combined) or "PER_PIXEL" (evaluated here).
 EVALUATIONS = ("COMPOSITOR", "PER_PIXEL")
