@@ -157,10 +157,10 @@ NOTES = """## What the numbers say
 - **Disable** is one `nodes.remove` per material: the same per-edit scan in 4.2.
 - The numbers move by up to 2x with other work on the machine (see the load average above), and between days
   on the same quiet machine: stop 20 measured the 10-material sync at 0.84 ms and 5.0's enable at 964-968 ms;
-  stop 21's two runs, load average below 1, 2.3-3.2 ms and 1.14-1.25 s with the same sync code and a leaner enable. The CPU
-  row (`time.process_time` of the enable) counts every thread of the process. An A/B of the material pass alone
-  (`materials.inject_scene`, 5000 materials, three alternating runs each, the same machine and hour): 1151-1194 ms
-  before stop 21's changes, 984-1053 ms after.
+  stop 21's two runs, load average below 1, 2.3-3.2 ms and 1.14-1.25 s with the same sync code and a leaner
+  enable. The CPU row (`time.process_time` of the enable) counts every thread of the process. An A/B of the
+  material pass alone (`materials.inject_scene`, 5000 materials, three alternating runs each, the same machine
+  and hour): 1151-1194 ms before stop 21's changes, 984-1053 ms after.
 """
 
 
