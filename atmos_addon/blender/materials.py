@@ -351,9 +351,10 @@ def free_spot(nodes) -> tuple[float, float]:
 def place_last(nodes, x: float, y: float) -> None:
     """Move the last node of ``nodes`` to (x, y) without an RNA update.
 
-    Blender 4.2-4.5 answer every node property write with a node-tree update that scans every tree in
-    the file, so a pass over N materials costs O(N^2); ``foreach_set`` writes the raw locations (the
-    other nodes get back the values just read) and skips that update. It saves a third of a 4.2 enable.
+    Every node property write runs a node-tree update, which in Blender 4.2 scans every tree in the file
+    (``tools/bench_node_edits.py``), so a pass over N materials costs O(N^2) there; ``foreach_set`` writes
+    the raw locations (the other nodes get back the values just read) and skips that update. It saved a
+    third of a 4.2 enable.
     """
     locations = [0.0] * (2 * len(nodes))
     nodes.foreach_get("location", locations)
