@@ -62,7 +62,10 @@ except ImportError:  # plain Python: only --table
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "tests" / "blender"))   # the tests' scene helpers (render_utils)
 sys.dont_write_bytecode = True  # Blender's Python (a chroot's 3.13 or 3.14) leaves no caches in the checkout
+if bpy is not None:
+    from render_utils import emission_material, view_direction
 
 WORLD_COLOUR = (0.05, 0.1, 0.2)
 FOV = math.radians(20.0)
@@ -111,23 +114,8 @@ def srgb8(linear) -> np.ndarray:
 
 def grid_direction(column: float, row: float) -> Vector:
     """World direction through a grid cell centre (row 0 at the bottom) of the camera at the origin looking
-    along +Y, Z up (``render_utils.view_direction``)."""
-    half = math.tan(FOV / 2.0)
-    x = (column + 0.5 - GRID_W / 2.0) / (GRID_W / 2.0) * half
-    z = (row + 0.5 - GRID_H / 2.0) / (GRID_W / 2.0) * half
-    return Vector((x, 1.0, z)).normalized()
-
-
-def emission_material(name: str, radiance) -> bpy.types.Material:
-    material = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        material.use_nodes = True
-    tree = material.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    emission = tree.nodes.new("ShaderNodeEmission")
-    emission.inputs["Color"].default_value = (*radiance, 1.0)
-    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    return material
+    along +Y, Z up."""
+    return view_direction(column, row, GRID_W, GRID_H, FOV)
 
 
 def build_scene(engine: str) -> bpy.types.Scene:
