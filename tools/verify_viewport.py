@@ -65,7 +65,7 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "tests" / "blender"))   # the tests' scene helpers (render_utils)
 sys.dont_write_bytecode = True  # Blender's Python (a chroot's 3.13 or 3.14) leaves no caches in the checkout
 if bpy is not None:
-    from render_utils import emission_material, view_direction
+    from render_utils import emission_material, parity_world_camera_sun, render_exr, view_direction
 
 WORLD_COLOUR = (0.05, 0.1, 0.2)
 FOV = math.radians(20.0)
@@ -125,23 +125,10 @@ def build_scene(engine: str) -> bpy.types.Scene:
                        bpy.data.worlds):
         for block in list(collection):
             collection.remove(block)
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD_COLOUR, 1.0)
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.data.sensor_fit = "HORIZONTAL"
-    camera.data.angle = FOV
-    camera.data.clip_start = 1.0
-    camera.data.clip_end = 100_000.0
-    camera.data.passepartout_alpha = 0.0
-    camera.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun = parity_world_camera_sun(scene, WORLD_COLOUR, FOV)
     sun.rotation_euler = SUN_ROTATION
-    scene.collection.objects.link(sun)
+    camera = scene.camera.data
+    camera.sensor_fit, camera.clip_start, camera.passepartout_alpha = "HORIZONTAL", 1.0, 0.0
     for name, radiance, distance, column, row in PLANES:
         direction = grid_direction(column, row)
         h = distance * 3.0 * math.tan(FOV / 2.0) / (GRID_W / 2.0)  # 3 grid cells: about 100 screen pixels
@@ -323,15 +310,8 @@ def settle(window, path: Path, timeout: float, where: dict, like_off: dict | Non
 
 def final_render(scene, points, folder: Path) -> dict[str, list[float]]:
     """F12-path render of the scene to EXR (scene-linear), sampled at the points (nearest pixel)."""
-    path = folder / "final.exr"
-    settings = scene.render.image_settings
-    settings.file_format, settings.color_depth = "OPEN_EXR", "32"
-    scene.render.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(path), check_existing=False)
-    width, height = image.size
-    pixels = np.array(image.pixels[:], dtype=float).reshape(height, width, 4)[..., :3]
-    bpy.data.images.remove(image)
+    pixels = render_exr(scene, folder / "final.exr")
+    height, width = pixels.shape[:2]
     result = {}
     for name, point, _ in points:
         uv = world_to_camera_view(scene, scene.camera, point)
