@@ -110,6 +110,35 @@ def _split(layout):
     return layout
 
 
+#: The first Blender whose viewport compositor gets the render passes Atmos writes (AOVs); 4.2's gets only Image
+#: and Alpha (its manual). 4.3.2 and 5.2.2 measured (docs/viewport.md).
+VIEWPORT_AOVS_SINCE = (4, 3, 0)
+EEVEE_ENGINES = frozenset({"BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"})
+
+
+def viewport_note(scene) -> str:
+    """What the 3D viewport's Rendered shading shows of the aerial perspective, in one line.
+
+    Measured in GUI Blender 4.3.2 and 5.2.2 (``tools/verify_viewport.py``, docs/viewport.md): the In-Render mode is
+    shading and shows in the viewport exactly; the Compositor and Per Pixel modes need the viewport compositor,
+    which gets Eevee's AOVs but no passes at all from Cycles. Other engines (Workbench) run no material nodes.
+    """
+    from . import in_render
+
+    engine = scene.render.engine
+    if engine == "CYCLES" and in_render.effective_mode(scene) == "IN_RENDER":
+        return "Viewport: the haze shows in Rendered shading"
+    if engine not in EEVEE_ENGINES and engine != "CYCLES":
+        return "This engine renders no Atmos haze: use Eevee or Cycles"
+    if bpy.app.version < VIEWPORT_AOVS_SINCE:
+        return "Viewport: no haze (this Blender's viewport compositor gets no AOVs); renders have it"
+    if engine == "CYCLES":
+        if in_render.supported():
+            return "Viewport: no haze in Cycles in this mode (no passes); In-Render mode shows it"
+        return "Viewport: no haze in Cycles (no passes in its viewport compositor); renders have it"
+    return "Viewport: set Viewport Shading > Compositor to Always to see the haze"
+
+
 class ATMOS_PT_atmosphere(_WorldPanel, bpy.types.Panel):
     """Physically based aerial perspective, sky and sunlight of the scene."""
 
@@ -131,6 +160,8 @@ class ATMOS_PT_atmosphere(_WorldPanel, bpy.types.Panel):
             layout.label(text=reason, icon="INFO")
         if not settings.enabled:
             layout.label(text="Off: tick the box to add the atmosphere to the scene", icon="INFO")
+        else:
+            layout.label(text=viewport_note(context.scene), icon="VIEW3D")
 
 
 class ATMOS_PT_atmosphere_air(_SubPanel, bpy.types.Panel):

@@ -26,7 +26,7 @@ import atmos_addon
 from atmos_addon import presets
 from atmos_addon.blender import contact_sheet, effect, preset_ops, registration, settings_io, sync, ui_panel
 
-from render_utils import ENGINES, make_camera, make_plane, render_to_array, set_engine
+from render_utils import EEVEE_ENGINE, ENGINES, make_camera, make_plane, render_to_array, set_engine
 
 BUILTINS = presets.BUILTIN_NAMES
 OUR_MODULES = ("atmos_addon",)
@@ -260,6 +260,30 @@ def test_every_panel_draws_for_every_builtin_preset(addon):
 
 # --------------------------------------------------------------------------------------------------------------
 # The library operators
+
+
+def test_the_panel_says_what_the_viewport_shows(addon):
+    """One line under the mode row, from what GUI Blender 4.3.2 and 5.2.2 showed (docs/viewport.md): Eevee's
+    viewport compositor gets the AOVs (4.3+), Cycles' gets no passes, In-Render is shading (Cycles, 4.5+)."""
+    scene = bpy.context.scene
+    add_sun(scene)
+    aovs = bpy.app.version >= ui_panel.VIEWPORT_AOVS_SINCE
+    in_render = bpy.app.version >= (4, 5, 0)
+    expected = {
+        ("CYCLES", "COMPOSITOR"): "no haze in Cycles in this mode" if in_render and aovs else "no haze",
+        ("CYCLES", "PER_PIXEL"): "no haze in Cycles in this mode" if in_render and aovs else "no haze",
+        ("CYCLES", "IN_RENDER"): "the haze shows in Rendered shading" if in_render else "no haze",
+        (EEVEE_ENGINE, "COMPOSITOR"): "Compositor to Always" if aovs else "no haze",
+        (EEVEE_ENGINE, "IN_RENDER"): "Compositor to Always" if aovs else "no haze",   # Eevee renders it as Compositor
+        ("BLENDER_WORKBENCH", "PER_PIXEL"): "This engine renders no Atmos haze",
+    }
+    for (engine, mode), words in expected.items():
+        scene.render.engine, scene.atmos.render_mode = engine, mode
+        assert words in ui_panel.viewport_note(scene), (engine, mode, ui_panel.viewport_note(scene))
+        assert ("label", ui_panel.viewport_note(scene)) not in draw_everything(scene)   # off: no viewport line
+    effect.enable_effect(scene)
+    scene.render.engine, scene.atmos.render_mode = "CYCLES", "COMPOSITOR"
+    assert ("label", ui_panel.viewport_note(scene)) in draw_everything(scene)
 
 
 def test_apply_preset_sets_settings_within_float32_and_the_sun(addon):
