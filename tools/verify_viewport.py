@@ -65,7 +65,7 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "tests" / "blender"))   # the tests' scene helpers (render_utils)
 sys.dont_write_bytecode = True  # Blender's Python (a chroot's 3.13 or 3.14) leaves no caches in the checkout
 if bpy is not None:
-    from render_utils import emission_material, parity_world_camera_sun, render_exr, view_direction
+    from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, view_direction
 
 WORLD_COLOUR = (0.05, 0.1, 0.2)
 FOV = math.radians(20.0)
@@ -166,16 +166,8 @@ def build_scene(engine: str) -> bpy.types.Scene:
 
 def expected_plane(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
     """L0 F_ex + L_in of the physics core for a plane (as ``test_aerial_application._expected``)."""
-    from atmos_addon.blender import sync
-    from atmos_addon.physics import sun_irradiance_ground
-    from atmos_addon.physics.aerial_perspective import extinction, inscattering
-
-    atmosphere = sync.atmosphere_from_settings(scene.atmos)
-    sun_dir, _ = sync.sun_direction(scene)
-    e_sun = sun_irradiance_ground(math.asin(sun_dir[2]), atmosphere)
-    metres = distance * sync.metres_per_unit(scene)
-    mu = float(np.dot(np.array(grid_direction(column, row)), sun_dir))
-    return np.asarray(radiance) * extinction(metres, atmosphere) + inscattering(metres, mu, atmosphere, e_sun)
+    transmittance, inscattered = fast_segment(scene, grid_direction(column, row), distance)
+    return np.asarray(radiance) * transmittance + inscattered
 
 
 def sample_points() -> list[tuple[str, Vector, tuple | None]]:

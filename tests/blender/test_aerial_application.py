@@ -20,8 +20,7 @@ from mathutils import Vector
 import atmos_addon
 from atmos_addon.blender import compositor, effect, materials, sync
 from atmos_addon.physics import sun_irradiance_ground
-from atmos_addon.physics.aerial_perspective import extinction, inscattering
-from render_utils import emission_material, parity_world_camera_sun, render_exr, set_use_nodes, \
+from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, set_use_nodes, \
     user_compositor, view_direction
 
 IS_5 = bpy.app.version >= (5, 0, 0)
@@ -283,12 +282,8 @@ def _render(scene, tmp_path: Path, name: str) -> np.ndarray:
 
 
 def _expected(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
-    atmosphere = sync.atmosphere_from_settings(scene.atmos)
-    sun_dir, _ = sync.sun_direction(scene)
-    e_sun = sun_irradiance_ground(math.asin(sun_dir[2]), atmosphere)
-    metres = distance * sync.metres_per_unit(scene)
-    mu = float(np.dot(np.array(_pixel_direction(column, row)), sun_dir))
-    return np.asarray(radiance) * extinction(metres, atmosphere) + inscattering(metres, mu, atmosphere, e_sun)
+    transmittance, inscattered = fast_segment(scene, _pixel_direction(column, row), distance)
+    return np.asarray(radiance) * transmittance + inscattered
 
 
 def _show_pass(scene, socket_name: str | None) -> None:

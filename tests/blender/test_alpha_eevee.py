@@ -23,10 +23,8 @@ import pytest
 from mathutils import Vector
 
 import atmos_addon
-from atmos_addon.blender import effect, sync
-from atmos_addon.physics import sun_irradiance_ground
-from atmos_addon.physics.aerial_perspective import extinction, inscattering
-from render_utils import render_exr
+from atmos_addon.blender import effect
+from render_utils import fast_segment, render_exr
 
 EEVEE = "BLENDER_EEVEE" if bpy.app.version >= (5, 0, 0) else "BLENDER_EEVEE_NEXT"
 WIDTH, HEIGHT, FOV = 32, 16, math.radians(20.0)
@@ -147,13 +145,9 @@ _render = render_exr  # the composited image, linear RGB, row 0 at the bottom
 
 def _expected(scene, radiance, plane_distance: float, column: int, row: int) -> np.ndarray:
     """L0 F_ex + L_in for the plane y = plane_distance seen through pixel (column, row)."""
-    atmosphere = sync.atmosphere_from_settings(scene.atmos)
-    sun_dir, _ = sync.sun_direction(scene)
-    e_sun = sun_irradiance_ground(math.asin(sun_dir[2]), atmosphere)
     direction = _direction(column, row)
-    metres = plane_distance / direction.y * sync.metres_per_unit(scene)
-    mu = float(np.dot(np.array(direction), sun_dir))
-    return np.asarray(radiance) * extinction(metres, atmosphere) + inscattering(metres, mu, atmosphere, e_sun)
+    transmittance, inscattered = fast_segment(scene, direction, plane_distance / direction.y)
+    return np.asarray(radiance) * transmittance + inscattered
 
 
 def test_eevee_checker_cutout_shows_the_far_wall_atmosphere_in_its_holes(tmp_path: Path) -> None:

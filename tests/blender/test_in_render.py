@@ -23,10 +23,9 @@ import atmos_addon
 import atmos_addon.api
 from atmos_addon.blender import effect, in_render, materials, sync
 from atmos_addon.physics import sun_irradiance_ground
-from atmos_addon.physics.aerial_perspective import extinction, inscattering
 from atmos_addon.physics.sky import aerial_distance_clamped, dome_distance_approx, extinction_layered, \
     inscattering_layered
-from render_utils import emission_material, parity_world_camera_sun, render_exr, set_use_nodes, \
+from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, set_use_nodes, \
     view_direction
 
 EEVEE = "BLENDER_EEVEE" if bpy.app.version >= (5, 0, 0) else "BLENDER_EEVEE_NEXT"
@@ -100,12 +99,7 @@ def _render(scene, tmp_path: Path, name: str) -> np.ndarray:
 
 def _segment(scene, direction, distance: float) -> tuple[np.ndarray, np.ndarray]:
     """(F_ex, L_in) of a segment of ``distance`` scene units along unit ``direction`` (physics core, eq. 19)."""
-    atmosphere = sync.atmosphere_from_settings(scene.atmos)
-    sun_dir, _ = sync.sun_direction(scene)
-    e_sun = sun_irradiance_ground(math.asin(sun_dir[2]), atmosphere)
-    metres = distance * sync.metres_per_unit(scene)
-    mu = float(np.dot(np.asarray(direction), sun_dir))
-    return extinction(metres, atmosphere), inscattering(metres, mu, atmosphere, e_sun)
+    return fast_segment(scene, direction, distance)
 
 
 DIRECT = (  # name, L0, distance (m), pixel column, row
