@@ -1,4 +1,4 @@
-# Thin wrapper over ./run (which installs what it needs). BPY_VERSION=4.2.23 make test, etc.
+# Thin wrapper over ./run (which installs what it needs). BPY_VERSION=4.5.15 make test, etc.
 .PHONY: demo test test-physics bench build
 demo test test-physics bench build:
 	./run $@

@@ -136,6 +136,12 @@ def enable(scene, preset=None, *, sun_elevation_deg: float | None = None, sun_az
     return effect.enable_effect(scene)
 
 
+def is_enabled(scene) -> bool:
+    """True when ``scene`` has Atmos on (set up in the panel, by :func:`enable` or saved so in its file)."""
+    _ensure_registered()
+    return bool(scene.atmos.enabled)
+
+
 def disable(scene) -> None:
     """Turn Atmos off for ``scene``, restoring materials, compositor and world exactly."""
     _ensure_registered()

@@ -2,12 +2,14 @@
 """The Atmos command line: ``python -m atmos_addon ARGS`` (pip ``bpy``) or ``blender --command atmos ARGS``.
 
 Sub-commands (``--help`` on each for its options):
-  render SCENE --preset P --output PATH     render frames with the effect (PNG, or multilayer EXR with AOVs)
-  apply SCENE --preset P --output OUT.blend write a .blend with the effect set up, for farms without Atmos
+  render SCENE [--preset P] --output PATH   render frames with the effect (PNG, or multilayer EXR with AOVs)
+  apply SCENE [--preset P] --output OUT.blend  write a .blend with the effect set up, for farms without Atmos
   contact-sheet SCENE --presets a,b --elevations 60,20 --output sheet.png
   presets list | show NAME | validate FILE
   demo [--output DIR]                       render the sample scenes with every preset (the README's first command)
-SCENE is a .blend file, or the name of a sample scene (valley, mars) when run from a source checkout.
+SCENE is a .blend file, or the name of a sample scene (valley, mars) when run from a source checkout. Without
+--preset, render and apply use the file's own Atmos settings (a shot set up in the panel); a file without an Atmos
+set-up needs --preset.
 Progress goes to stderr; a failure ends in one line ``atmos: error: ...`` and exit code 2, never a traceback.
 """
 
@@ -139,13 +141,28 @@ def _configure(scene, args: argparse.Namespace) -> None:
 def set_output_format(image_settings, multilayer_exr: bool) -> None:
     """PNG, or 32-bit multilayer OpenEXR (every pass, the atmosphere AOVs included).
 
-    Blender 5.0 chooses multilayer output through ``media_type``; 4.2 has it as a file format.
+    Blender 5.0 chooses multilayer output through ``media_type``; 4.5 has it as a file format.
     """
     if "media_type" in image_settings.bl_rna.properties:
         image_settings.media_type = "MULTI_LAYER_IMAGE" if multilayer_exr else "IMAGE"
     image_settings.file_format = "OPEN_EXR_MULTILAYER" if multilayer_exr else "PNG"
     if multilayer_exr:
         image_settings.color_depth = "32"
+        image_settings.exr_codec = "ZIP"   # lossless: the atmosphere AOVs are data to composite with
+
+
+def render_settings(scene) -> str:
+    """The settings a render depends on beyond the scene's content, in one line: what a farm must use to render the
+    same pixels (Cycles' denoiser, for one, is the file's setting: on in a new Cycles scene)."""
+    render = scene.render
+    size = (f"{render.resolution_x * render.resolution_percentage // 100}x"
+            f"{render.resolution_y * render.resolution_percentage // 100} px")
+    if render.engine == "CYCLES":
+        cycles = scene.cycles
+        return (f"Cycles, {cycles.samples} samples, denoising {'on' if cycles.use_denoising else 'off'}, seed "
+                f"{cycles.seed}, {size}")
+    samples = getattr(getattr(scene, "eevee", None), "taa_render_samples", None)
+    return f"{render.engine.replace('BLENDER_', '').title()}, {samples} samples, {size}"
 
 
 def _eevee_engine_id() -> str:
@@ -161,16 +178,16 @@ def _prepare_scene(args: argparse.Namespace, *, with_preset: bool = True):
     if scene.camera is None:
         raise CliError(f"scene '{scene.name}' has no camera: add one or pick another scene")
     _configure(scene, args)
+    if with_preset and args.preset is None:
+        if not api.is_enabled(scene):
+            raise CliError(f"scene '{scene.name}' has no Atmos set-up (the effect is off in the file): give --preset "
+                           "NAME, or turn Atmos on in the file")
+        _log(f"atmos: no --preset: using the Atmos settings saved in the file (scene '{scene.name}')")
     overrides = {}
     mode = getattr(args, "mode", None)
     if mode is not None:
         if mode == "in-render" and scene.render.engine != "CYCLES":
             raise CliError("--mode in-render needs Cycles (add --engine cycles); Eevee renders with --mode compositor")
-        from .blender import in_render
-
-        if mode == "in-render" and not in_render.supported():
-            raise CliError("--mode in-render needs Blender 4.5 or newer (Cycles 4.2 loses indirect light inside "
-                           "the haze domes); use --mode compositor")
         overrides["render_mode"] = MODES[mode]
     if getattr(args, "quality", None) is not None:
         overrides["quality"] = args.quality.upper()
@@ -218,6 +235,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         raise CliError(f"--output must end in .png or .exr (multilayer EXR with the atmosphere AOVs), got '{output.name}'")
     scene = _prepare_scene(args)
     set_output_format(scene.render.image_settings, multilayer_exr=exr)
+    _log(f"atmos: {render_settings(scene)}")
     start, end = args.frames or (scene.frame_current, scene.frame_current)
     output.parent.mkdir(parents=True, exist_ok=True)
     progress = _SampleProgress()
@@ -335,9 +353,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 # ---------------------------------------------------------------------------------------------- parser
 
-def _add_effect_options(parser: argparse.ArgumentParser, *, preset_required: bool) -> None:
+def _add_effect_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", help="a .blend file, or a sample scene name: " + ", ".join(SAMPLE_SCENES))
-    parser.add_argument("--preset", required=preset_required, help="built-in or user preset name, or a .toml file")
+    parser.add_argument("--preset", help="built-in or user preset name, or a .toml file (default: the Atmos settings "
+                                         "saved in the file, when it has them)")
     parser.add_argument("--sun-elevation", type=_degrees(-90.0, 90.0), help="sun elevation in degrees")
     parser.add_argument("--sun-azimuth", type=_degrees(-360.0, 360.0), help="sun azimuth in degrees, clockwise from +Y")
     parser.add_argument("--engine", choices=ENGINES, help="render engine (default: the scene's)")
@@ -360,14 +379,14 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     render = sub.add_parser("render", help="render a scene with the effect")
-    _add_effect_options(render, preset_required=True)
+    _add_effect_options(render)
     render.add_argument("--frames", type=_frames, help="frame range A-B (default: the current frame)")
     render.add_argument("--output", required=True, help="output .png or .exr (multilayer, with the AOVs); "
                                                          "#### in the name is replaced by the frame number")
     render.set_defaults(func=cmd_render)
 
     apply = sub.add_parser("apply", help="write a .blend with the effect set up (farm-ready, no add-on needed)")
-    _add_effect_options(apply, preset_required=True)
+    _add_effect_options(apply)
     apply.add_argument("--output", required=True, help="the .blend file to write")
     apply.set_defaults(func=cmd_apply)
 

@@ -159,9 +159,8 @@ class GraphBuilder:
     def power_per_channel(self, colour: Operand, exponent: Operand, *, label: str = "") -> Socket:
         """colour^exponent per channel with one Gamma node (channels <= 0 pass unchanged; exponent 0 gives 1).
 
-        The only per-channel power in Blender 4.2 (Vector Math has POWER from 5.0 on): with a colour base b and
-        a scalar x it gives b^x = exp(x ln b) in every channel at the cost of one node, where exp would need a
-        Separate, three Math nodes and a Combine.
+        With a colour base b and a scalar x it gives b^x = exp(x ln b) in every channel at the cost of one node,
+        where exp would need a Separate, three Math nodes and a Combine (Vector Math Power computes the same powf).
         """
         node = self.node("ShaderNodeGamma", label=label)
         self._feed(node, node.inputs["Color"], colour)
@@ -286,7 +285,7 @@ class GraphBuilder:
         return max(self._depth.values(), default=0)
 
 
-#: Math node of a compositor tree: Blender 5.0 shares the shader's, 4.2-4.5 have their own.
+#: Math node of a compositor tree: Blender 5.0 shares the shader's, 4.5 has its own.
 _COMPOSITOR_GROUP_API = "compositing_node_group" in bpy.types.Scene.bl_rna.properties
 COMPOSITOR_MATH = "ShaderNodeMath" if _COMPOSITOR_GROUP_API else "CompositorNodeMath"
 COMPOSITOR_SEPARATE_XYZ = "ShaderNodeSeparateXYZ" if _COMPOSITOR_GROUP_API else "CompositorNodeSeparateXYZ"
@@ -316,8 +315,8 @@ _FOLDED: dict[str, Callable[..., float]] = {
 class ChannelGraphBuilder(GraphBuilder):
     """The same arithmetic in a compositor tree, where a colour or vector is three scalar sockets.
 
-    Compositor trees have no Vector Math, Gamma or Attribute node in Blender 4.2, so every per-component
-    operation becomes one Math node per channel, and a colour is a 3-tuple of operands (sockets or numbers)
+    Compositor trees have no Gamma or Attribute node, and a compositor's work is per pixel and per channel
+    anyway, so every per-component operation becomes one Math node per channel, and a colour is a 3-tuple of operands (sockets or numbers)
     that :meth:`separate` and :meth:`combine` pass through without a node; arithmetic on constants only is
     computed here, not built (the unused third component of the two-species vectors). Parameters come from a mapping
     (name -> scalar socket or 3-tuple), normally a group's inputs, through :meth:`attribute`. The functions that
@@ -423,8 +422,8 @@ class ChannelGraphBuilder(GraphBuilder):
 
     def texel(self, image: bpy.types.Image | None, u: Operand, v: Operand, *, label: str = "") -> tuple:
         """``image`` at per-pixel coordinates (u, v), unfiltered: an Image node (one per builder) sampled by a Map UV
-        node with nearest-texel filtering (4.2-4.5: ``filter_type``; 5.0: the Interpolation input). The UV's third
-        component is its alpha in 4.2 (0 would blank the sample), so it is 1."""
+        node with nearest-texel filtering (4.5: ``filter_type``; 5.0: the Interpolation input). The UV's third
+        component is 1 (Map UV reads it as the sample's alpha where the UV is a colour)."""
         if self._image_node is None:
             self._image_node = self.node("CompositorNodeImage", label="table image")
             self._image_node.image = image

@@ -89,7 +89,7 @@ def configure(scene, config: str, preset: str) -> None:
             api.disable(scene)
         api.enable(scene, preset=preset, render_mode="IN_RENDER")
         if not in_render.is_installed(scene):
-            raise SystemExit(f"In-Render mode did not install: {in_render.unavailable_reason(scene)}")
+            raise SystemExit(f"In-Render mode did not install: {in_render.fallback_reason(scene)}")
 
 
 def timed_render(scene) -> tuple[float, float]:

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """One Blender version's scale measurements for ``tools/bench.py``: prints one JSON line (seconds / ms).
 
-    .venv/bpy-4.2.23/bin/python tools/bench_scale.py --materials 5000 --objects 20000 [--profile]
+    .venv/bpy-5.2.3/bin/python tools/bench_scale.py --materials 5000 --objects 20000 [--profile]
 """
 
 from __future__ import annotations

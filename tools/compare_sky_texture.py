@@ -16,13 +16,13 @@ Atmos's numbers come from :func:`~atmos_addon.physics.sky.sky_radiance` with the
 and E_sun from :func:`~atmos_addon.physics.sun.sun_irradiance_ground`, in numpy, with both domes; a third row
 is the core's brute-force single scattering of the same atmosphere (:mod:`~atmos_addon.physics.reference`),
 which separates the dome's approximations from the differences between atmospheres. Blender's models: 5.0
-'SINGLE_SCATTERING' and 'MULTIPLE_SCATTERING', 4.2 'NISHITA' (whichever the running ``bpy`` has), each also
+'SINGLE_SCATTERING' and 'MULTIPLE_SCATTERING', 4.5 'NISHITA' (whichever the running ``bpy`` has), each also
 without ozone for the single-scattering one.
 
 Usage (one command renders with this interpreter's Blender, with each ``--also`` interpreter in a subprocess,
 and rewrites the generated part of the report)::
 
-    .venv/bpy-5.0.1/bin/python tools/compare_sky_texture.py --also .venv/bpy-4.2.23/bin/python \\
+    .venv/bpy-5.2.3/bin/python tools/compare_sky_texture.py --also .venv/bpy-4.5.15/bin/python \\
         --output docs/sky_comparison.md
 
 ``--measure-json PATH`` only renders and writes the measurements as JSON (what ``--also`` runs).
@@ -301,7 +301,7 @@ def _relative(path: str) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--also", action="append", default=[], metavar="PYTHON",
-                        help="another interpreter with bpy (e.g. .venv/bpy-4.2.23/bin/python) to render with too")
+                        help="another interpreter with bpy (e.g. .venv/bpy-4.5.15/bin/python) to render with too")
     parser.add_argument("--output", type=Path, help="markdown report to (re)write, e.g. docs/sky_comparison.md")
     parser.add_argument("--measure-json", type=Path, help="only render with this interpreter's bpy; write JSON")
     args = parser.parse_args(argv)

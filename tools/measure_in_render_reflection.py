@@ -258,7 +258,7 @@ def measure(args: argparse.Namespace, camera_name: str) -> dict:
     reference = render(scene)
     scene.atmos.render_mode = "IN_RENDER"
     if not in_render.is_installed(scene):
-        raise SystemExit(f"In-Render mode did not install: {in_render.unavailable_reason(scene)}")
+        raise SystemExit(f"In-Render mode did not install: {in_render.fallback_reason(scene)}")
     hazed = render(scene)
     finite = {"reference": int(np.sum(~np.isfinite(reference))), "In-Render": int(np.sum(~np.isfinite(hazed)))}
     pixel_error = np.max(np.abs(hazed / reference - 1.0), axis=-1)

@@ -248,7 +248,7 @@ def measure(case: str, engine: str, width: int, height: int, factor: int, sample
     if with_in_render and engine == "CYCLES":
         scene.atmos.render_mode = "IN_RENDER"  # the update callback switches the effect to In-Render mode
         if not in_render.is_installed(scene):
-            reason = in_render.unavailable_reason(scene) if hasattr(in_render, "unavailable_reason") else None
+            reason = in_render.fallback_reason(scene) if hasattr(in_render, "fallback_reason") else None
             if reason is None:
                 raise RuntimeError("In-Render mode did not install")
             return rows, reason
@@ -346,7 +346,7 @@ rows. Where two surfaces share a pixel it hazes their mean distance, and exp(-be
 not c exp(-beta s_n) + (1 - c) exp(-beta s_f) (Jensen's gap, also first order in c (1 - c)): its near/far mean
 is 28-29 % against the Compositor's 17.6 %. It buys a render with no per-sample cost (docs/quality.md, "Cost").
 
-In-Render mode (Cycles, Blender 4.5 and newer; 4.2 has no In-Render rows) is that per-sample application:
+In-Render mode (Cycles) is that per-sample application:
 the haze is added on every ray, before the pixel filter, so its silhouette pixels average hazed samples as
 the reference does and carry no compositing error. Its rows measure the error of the "Image only" kind (the
 1x pixel filter against the reference's box, the reference's 16-sample grid against the exact edge

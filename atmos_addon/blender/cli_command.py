@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """``blender --command atmos ARGS``: the same CLI as ``python -m atmos_addon`` inside a real Blender.
 
-Blender 4.2+ lets an extension register a command-line command (``bpy.utils.register_cli_command``);
+Blender (4.2 and later) lets an extension register a command-line command (``bpy.utils.register_cli_command``);
 its handler receives the arguments after the command name and returns the exit code.
 """
 

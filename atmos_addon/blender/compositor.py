@@ -22,7 +22,7 @@ The node tree is inserted non-destructively: the links that left Render Layers.I
 leave our group's output; removing the group puts them back. What must be restored (the previous
 ``use_nodes`` / ``compositing_node_group`` / ``use_compositing`` and which nodes and AOVs we created)
 is stored in the scene (custom property ``atmos_compositor``) so it survives save and reload.
-Blender 4.2-4.5 composite through ``scene.node_tree`` (Composite node); 5.0 through the node group
+Blender 4.5 composites through ``scene.node_tree`` (Composite node); 5.0 through the node group
 in ``scene.compositing_node_group`` (its Group Output).
 """
 
@@ -45,7 +45,7 @@ AOVS = ((AOV_TRANSMITTANCE, "COLOR"), (AOV_INSCATTERING, "COLOR"), (AOV_COVERAGE
 #: The Per Pixel mode's AOVs (``node_groups.per_pixel``): the atmosphere is evaluated in the compositor. A colour
 #: AOV comes first: Eevee in Blender 5.2 writes 0 into the first AOV of a view layer when that one is a Value AOV
 #: (measured in a GUI Blender 5.2.2, viewport and final render, ``tools/verify_viewport.py``, and with the bpy 5.2.3
-#: wheel, where ``test_per_pixel_mode_composites_the_physics[EEVEE]`` fails with that order; not in 4.2-5.0 or 5.3.0).
+#: wheel, where ``test_per_pixel_mode_composites_the_physics[EEVEE]`` fails with that order; not in 4.5, 5.0 or 5.3.0).
 PER_PIXEL_AOVS = ((AOV_VIEW, "COLOR"), (AOV_COVERAGE, "VALUE"), (AOV_DISTANCE, "VALUE"))
 #: How the compositor applies the effect: "COMPOSITOR" (per-sample AOVs combined) or "PER_PIXEL" (evaluated here).
 EVALUATIONS = ("COMPOSITOR", "PER_PIXEL")

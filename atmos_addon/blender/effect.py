@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import compositor, in_render, materials, precise_tables, quality_choice, sun_lamp, sync, world
+from . import compositor, in_render, limits, materials, precise_tables, quality_choice, sun_lamp, sync, world
 
 _applying: set[str] = set()
 
@@ -129,9 +129,9 @@ def enable_effect(scene) -> Report:
         sky_features = sync.sky_features_from_settings(scene.atmos)
         report.messages.append(world.install_sky(scene, sync.ensure_sky_group(scene), sky_features))
         world.sync_sky_lighting(scene, sync.atmosphere_of(scene), sky_features)
-    reason = in_render.unavailable_reason(scene)
-    if reason:
-        report.messages.append(reason)
+    for warning in (in_render.fallback_reason(scene), limits.clip_range_warning(scene)):
+        if warning:
+            report.messages.append(warning)
     if in_render_mode:
         report.messages.extend(in_render.install(scene, sync.features_from_settings(scene.atmos),
                                                  sync.atmosphere_of(scene), sync.metres_per_unit(scene)))

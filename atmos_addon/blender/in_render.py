@@ -32,7 +32,7 @@ import bpy
 
 from .. import import_sibling
 from ..physics.dome_mesh import dome_mesh
-from . import materials
+from . import limits, materials
 from .materials import TAG
 
 STATE_KEY = "atmos_in_render"
@@ -41,9 +41,6 @@ DOME_NAMES = {"MOLECULES": "Atmos Dome (molecules)", "AEROSOLS": "Atmos Dome (ae
 SURFACE_TAG = "in-render surface"
 OUTPUT_TAG = "in-render output"
 WORLD_TAGS = ("in-render sky", "in-render background", "in-render world output")
-#: Custom properties on tagged nodes: what to restore when they are removed.
-EMISSION_SAMPLING_KEY = "atmos_emission_sampling"
-REACTIVATE_KEY = "atmos_reactivate"
 DOME_KEY = "atmos_dome_of"
 #: The camera's clip end is raised to this many times the largest dome distance.
 CLIP_MARGIN = 1.05
@@ -60,35 +57,35 @@ def _groups():
     return import_sibling("node_groups").in_render
 
 
-#: Oldest Blender whose Cycles leaves the scene's indirect light alone inside the domes. Measured: in 4.2.23 a
-#: world-lit wall inside them rendered 15-20 % darker (diffuse and shadow rays lost light to the invisible
-#: domes), in 4.5.15 and 5.0.1 within 2 % of the plain render (tests/blender/test_in_render.py).
-MIN_BLENDER = (4, 5, 0)
+def uses_osl(scene) -> bool:
+    """True when the scene renders with Cycles and Open Shading Language is on: Cycles then writes no shader AOVs
+    (measured: they come out empty), so the Compositor and Per Pixel modes would render no haze at all."""
+    return scene.render.engine == "CYCLES" and bool(getattr(getattr(scene, "cycles", None), "shading_system", False))
 
 
-def supported() -> bool:
-    """True when this Blender can render In-Render mode correctly (:data:`MIN_BLENDER`)."""
-    return bpy.app.version >= MIN_BLENDER
+def fallback_reason(scene) -> str | None:
+    """Why the scene renders in another mode than its setting asks for, or None when it renders in that mode.
 
-
-def unavailable_reason(scene) -> str | None:
-    """Why the scene's In-Render setting falls back to Compositor mode, or None when it does not."""
-    if getattr(scene.atmos, "render_mode", "COMPOSITOR") != "IN_RENDER":
-        return None
-    if not supported():
-        return "In-Render mode needs Blender 4.5 or newer (Cycles 4.2 loses indirect light inside the haze domes)"
-    if scene.render.engine != "CYCLES":
+    - In-Render asked for, engine not Cycles: Compositor mode (In-Render is Cycles shading).
+    - Compositor or Per Pixel asked for, Cycles with Open Shading Language: In-Render mode, the one mechanism that
+      does not depend on shader AOVs (it applies the Fast level on every ray segment).
+    """
+    wanted = getattr(scene.atmos, "render_mode", "COMPOSITOR")
+    if wanted == "IN_RENDER" and scene.render.engine != "CYCLES":
         return "In-Render mode needs Cycles: this engine renders with the Compositor mode"
+    if wanted != "IN_RENDER" and uses_osl(scene):
+        return ("Open Shading Language is on: Cycles writes no AOVs with it, so the haze is applied In-Render "
+                "(turn OSL off for the Compositor or Per Pixel mode)")
     return None
 
 
 def effective_mode(scene) -> str:
-    """"IN_RENDER" when the scene asks for it, renders with Cycles and Blender supports it; "PER_PIXEL" when the
-    scene asks for it (both engines, every version); else "COMPOSITOR"."""
+    """The mode the scene renders with: its setting, except where :func:`fallback_reason` says otherwise
+    ("IN_RENDER" needs Cycles; Cycles with Open Shading Language renders "IN_RENDER")."""
     wanted = getattr(scene.atmos, "render_mode", "COMPOSITOR")
-    if wanted == "PER_PIXEL":
+    if fallback_reason(scene) is None:
         return wanted
-    return "IN_RENDER" if wanted == "IN_RENDER" and unavailable_reason(scene) is None else "COMPOSITOR"
+    return "COMPOSITOR" if wanted == "IN_RENDER" else "IN_RENDER"
 
 
 def is_installed(scene) -> bool:
@@ -102,18 +99,6 @@ def _state(scene) -> dict:
 
 
 # -- materials ------------------------------------------------------------------------------------------
-
-
-def _cycles_output(tree):
-    """The Material Output Cycles renders: an active one with target Cycles, any Cycles one, else the active "All"."""
-    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and not n.get(TAG)]
-    for candidates in ([n for n in outputs if n.target == "CYCLES" and n.is_active_output],
-                       [n for n in outputs if n.target == "CYCLES"],
-                       [n for n in outputs if n.target == "ALL" and n.is_active_output],
-                       [n for n in outputs if n.target == "ALL"]):
-        if candidates:
-            return candidates[0]
-    return None
 
 
 def _emits(tree, seen=None) -> bool:
@@ -141,24 +126,14 @@ def _new_node(tree, bl_idname: str, x: float, y: float):
     return node
 
 
-def _copy_input(tree, source_output, target_output, name: str) -> None:
-    source, target = source_output.inputs.get(name), target_output.inputs.get(name)
-    if source is None or target is None:
-        return
-    if source.is_linked:
-        tree.links.new(source.links[0].from_socket, target)
-    elif hasattr(source, "default_value") and hasattr(target, "default_value"):
-        target.default_value = source.default_value
-
-
 def inject(material, surface_group) -> None:
     """Add the in-render nodes to one node-based, editable material (idempotent; module docstring)."""
     materials.remove(material)
     tree = material.node_tree
     nodes = tree.nodes
     x, y = materials.free_spot(nodes)
-    user_output = _cycles_output(tree)
-    opacity_socket, opacity_value, invert = materials._opacity(tree)
+    user_output = materials.cycles_output(tree)
+    opacity_socket, opacity_value, invert = materials.opacity(tree)
     group = _new_node(tree, "ShaderNodeGroup", x, y)
     group.label = "Atmos In-Render Surface"
     group[TAG] = SURFACE_TAG
@@ -172,13 +147,8 @@ def inject(material, surface_group) -> None:
         if surface.is_linked:
             tree.links.new(surface.links[0].from_socket, group.inputs["Surface"])
         for name in ("Volume", "Displacement", "Thickness"):
-            _copy_input(tree, user_output, output, name)
-        if user_output.target == "CYCLES":  # two Cycles outputs: Blender renders the active one, so make ours
-            active = next((n for n in nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output
-                           and n != output), None)
-            if active is not None:
-                output[REACTIVATE_KEY] = active.name
-            output.is_active_output = True
+            materials.copy_input(tree, user_output, output, name)
+        materials.take_over_cycles_output(tree, output, user_output)
     tree.links.new(group.outputs["Shader"], output.inputs["Surface"])
     target = group.inputs["Transparency" if invert else "Opacity"]
     if opacity_socket is not None:
@@ -187,19 +157,8 @@ def inject(material, surface_group) -> None:
         target.default_value = opacity_value
     cycles = getattr(material, "cycles", None)
     if cycles is not None and hasattr(cycles, "emission_sampling") and not _emits(tree):
-        output[EMISSION_SAMPLING_KEY] = cycles.emission_sampling
+        output[materials.EMISSION_SAMPLING_KEY] = cycles.emission_sampling
         cycles.emission_sampling = "NONE"
-
-
-def restore_material_settings(material, tagged) -> str | None:
-    """Undo what :func:`inject` changed outside its nodes; returns the user output to re-activate (or None)."""
-    reactivate = None
-    for node in tagged:
-        sampling = node.get(EMISSION_SAMPLING_KEY)
-        if sampling is not None and getattr(material, "cycles", None) is not None:
-            material.cycles.emission_sampling = sampling
-        reactivate = node.get(REACTIVATE_KEY) or reactivate
-    return reactivate
 
 
 def inject_scene(scene, surface_group, *, only_new: bool = False) -> materials.MaterialReport:
@@ -278,8 +237,9 @@ def _domes(scene) -> list:
     return [] if collection is None else [o for o in collection.objects if o.get(TAG) in DOME_NAMES]
 
 
-def sync_domes(scene, atmosphere, metres_per_unit: float) -> None:
-    """Keep the domes' shapes, scale and camera current (values and geometry only; cheap when unchanged)."""
+def sync_domes(scene, atmosphere, metres_per_unit: float) -> float:
+    """Keep the domes' shapes, scale and camera current (values and geometry only; cheap when unchanged); returns
+    the clip end (scene units) the camera needs to see the whole largest dome."""
     scale = 1.0 / metres_per_unit
     largest = 0.0
     for obj in _domes(scene):
@@ -292,7 +252,9 @@ def sync_domes(scene, atmosphere, metres_per_unit: float) -> None:
         for constraint in obj.constraints:
             if constraint.type == "COPY_LOCATION" and scene.camera is not None and constraint.target != scene.camera:
                 constraint.target = scene.camera
-    _raise_clip_end(scene, largest * scale * CLIP_MARGIN)
+    needed = largest * scale * CLIP_MARGIN
+    _raise_clip_end(scene, needed)
+    return needed
 
 
 def _raise_transparent_bounces(scene) -> None:
@@ -318,8 +280,13 @@ def _restore_transparent_bounces(scene, state) -> None:
 
 
 def _raise_clip_end(scene, needed: float) -> None:
+    """Raise the camera's clip end to ``needed``, but never past Eevee's flat-sky limit of the clip range
+    (:mod:`.limits`: the file may be rendered with Eevee later); :func:`install` warns when it stops short."""
     camera = scene.camera
-    if camera is None or camera.type != "CAMERA" or needed <= 0.0 or camera.data.clip_end >= needed:
+    if camera is None or camera.type != "CAMERA":
+        return
+    needed = min(needed, limits.largest_clip_end(camera))
+    if needed <= 0.0 or camera.data.clip_end >= needed:
         return
     state = scene[STATE_KEY]
     clips = dict(state.get("clip_end", {}))
@@ -389,7 +356,7 @@ def install_world(scene, features) -> str | None:
         active = next((n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.is_active_output
                        and n != world_output), None)
         if active is not None:
-            world_output[REACTIVATE_KEY] = active.name
+            world_output[materials.REACTIVATE_KEY] = active.name
         world_output.is_active_output = True
     return None
 
@@ -397,7 +364,7 @@ def install_world(scene, features) -> str | None:
 def remove_world(world) -> None:
     """Delete the world nodes of :func:`install_world` (re-activating the output that was active before)."""
     tagged = world_nodes(world)
-    reactivate = next((n.get(REACTIVATE_KEY) for n in tagged if n.get(REACTIVATE_KEY)), None)
+    reactivate = next((n.get(materials.REACTIVATE_KEY) for n in tagged if n.get(materials.REACTIVATE_KEY)), None)
     for node in tagged:
         world.node_tree.nodes.remove(node)
     if reactivate and world.node_tree.nodes.get(reactivate) is not None:
@@ -428,7 +395,12 @@ def install(scene, features, atmosphere, metres_per_unit: float) -> list[str]:
         _raise_transparent_bounces(scene)
         for species in DOME_NAMES:
             _make_dome(scene, collection, species, atmosphere, 1.0 / metres_per_unit)
-    sync_domes(scene, atmosphere, metres_per_unit)
+    needed_clip_end = sync_domes(scene, atmosphere, metres_per_unit)
+    camera = scene.camera
+    if camera.type == "CAMERA" and camera.data.clip_end < needed_clip_end:
+        messages.append(f"In-Render: camera '{camera.name}' ends at Clip End {camera.data.clip_end:.4g} before the "
+                        f"haze domes ({needed_clip_end:.4g}), and Atmos keeps Clip End / Clip Start within Eevee's "
+                        "limit: the sky near the horizon renders too bright; raise Clip Start")
     depth = horizon_optical_depth(atmosphere)
     limit = _groups().MAX_COMPENSATED_OPTICAL_DEPTH
     if depth > limit:

@@ -58,6 +58,15 @@ NODE_LABEL = "Atmos Surface AOVs"
 #: Above this many materials per pass, the surface group is emptied while materials are edited (see inject_scene).
 BULK_THRESHOLD = 16
 
+#: Custom properties on tagged nodes: what to restore when they are removed (:func:`remove`). The user's
+#: Cycles-target Material Output that was active before a tagged one took over, and the material's Cycles emission
+#: sampling before In-Render mode changed it.
+REACTIVATE_KEY = "atmos_reactivate"
+EMISSION_SAMPLING_KEY = "atmos_emission_sampling"
+#: Tags of the three nodes that keep a surface opaque in Cycles when Cycles folds its shader away (:func:`keep_opaque`).
+OPAQUE_BLACK_TAG, OPAQUE_ADD_TAG, OPAQUE_OUTPUT_TAG = "opaque black", "opaque add", "opaque output"
+OPAQUE_TAGS = (OPAQUE_BLACK_TAG, OPAQUE_ADD_TAG, OPAQUE_OUTPUT_TAG)
+
 #: Object types that render surfaces with materials.
 GEOMETRY_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"})
 
@@ -142,16 +151,25 @@ def _active_output(tree):
     return best
 
 
-def _opacity(tree):
-    """The surface's opacity as ``(socket, None)``, ``(None, constant)``, or ``(None, None)`` when opaque.
+#: Shaders through which Atmos sees what lies behind: a Transparent BSDF shows the surface behind, a Holdout cuts a
+#: hole in the render (alpha 0) that a compositor fills with a plate, which has its own atmosphere: Atmos leaves
+#: the hole as it is (coverage 0), in both engines.
+SEE_THROUGH_SHADERS = frozenset({"ShaderNodeBsdfTransparent", "ShaderNodeHoldout"})
 
-    Found for a Principled BSDF (its Alpha input) or a Mix Shader with a Transparent BSDF on one
-    side (its factor, or one minus it) feeding the active Material Output.
+
+def opacity(tree):
+    """The surface's opacity as ``(socket, None, invert)``, ``(None, constant, False)``, or ``(None, None, False)``
+    when opaque.
+
+    Found for a Principled BSDF (its Alpha input), a Holdout (opacity 0), or a Mix Shader with a Transparent BSDF
+    or a Holdout on one side (its factor, or one minus it) feeding the active Material Output.
     """
     output = _active_output(tree)
     if output is None or not output.inputs["Surface"].is_linked:
         return None, None, False
     shader = output.inputs["Surface"].links[0].from_node
+    if shader.bl_idname == "ShaderNodeHoldout":
+        return None, 0.0, False
     if shader.bl_idname == "ShaderNodeBsdfPrincipled":
         alpha = shader.inputs["Alpha"]
         if alpha.is_linked:
@@ -161,13 +179,195 @@ def _opacity(tree):
         factor = shader.inputs[0]
         for index, invert in ((1, False), (2, True)):
             sock = shader.inputs[index]
-            if sock.is_linked and sock.links[0].from_node.bl_idname == "ShaderNodeBsdfTransparent":
+            if sock.is_linked and sock.links[0].from_node.bl_idname in SEE_THROUGH_SHADERS:
                 # Mix = (1 - f) * A + f * B: opacity is f when A is transparent, 1 - f when B is.
                 if factor.is_linked:
                     return factor.links[0].from_socket, None, invert
                 value = float(factor.default_value)
                 return None, (1.0 - value if invert else value), False
     return None, None, False
+
+
+# -- the output Cycles renders, and surfaces Cycles folds away ------------------------------------------------
+
+
+def cycles_output(tree):
+    """The Material Output Cycles renders: an active one with target Cycles, any Cycles one, else the active "All"
+    one, else any "All" one (Atmos' own outputs left out)."""
+    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and not n.get(TAG)]
+    for candidates in ([n for n in outputs if n.target == "CYCLES" and n.is_active_output],
+                       [n for n in outputs if n.target == "CYCLES"],
+                       [n for n in outputs if n.target == "ALL" and n.is_active_output],
+                       [n for n in outputs if n.target == "ALL"]):
+        if candidates:
+            return candidates[0]
+    return None
+
+
+def copy_input(tree, source_output, target_output, name: str) -> None:
+    """Give ``target_output``'s input ``name`` the link (or the value) of ``source_output``'s."""
+    source, target = source_output.inputs.get(name), target_output.inputs.get(name)
+    if source is None or target is None:
+        return
+    if source.is_linked:
+        tree.links.new(source.links[0].from_socket, target)
+    elif hasattr(source, "default_value") and hasattr(target, "default_value"):
+        target.default_value = source.default_value
+
+
+def take_over_cycles_output(tree, ours, user_output) -> None:
+    """Make the tagged Cycles-target output ``ours`` the one Cycles renders. Blender prefers an output of the engine's
+    own target to an "All" one, so this matters only where the user has a Cycles-target output too: ours is made
+    active and theirs remembered (:data:`REACTIVATE_KEY`), to be made active again by :func:`remove`."""
+    if user_output is None or user_output.target != "CYCLES":
+        return
+    active = next((n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output
+                   and n != ours), None)
+    if active is not None:
+        ours[REACTIVATE_KEY] = active.name
+    ours.is_active_output = True
+
+
+def _is_zero(socket) -> bool:
+    """True when ``socket`` holds a constant exactly 0 (all three channels of a colour), unlinked or fed by a Value or
+    RGB node: what Cycles' constant folding sees as zero."""
+    if socket.is_linked:
+        node = socket.links[0].from_node
+        if node.bl_idname not in ("ShaderNodeValue", "ShaderNodeRGB") or node.mute:
+            return False
+        value = node.outputs[0].default_value
+    else:
+        value = socket.default_value
+    values = tuple(value)[:3] if hasattr(value, "__len__") else (value,)
+    return all(float(v) == 0.0 for v in values)
+
+
+def _folds_away(socket, depth: int = 0) -> bool:
+    """True when the shader linked into ``socket`` (a shader input) is nothing after Cycles' constant folding: no
+    link, an Emission or Background of colour 0 or strength 0, an Add Shader of two such, a Mix Shader whose
+    constant factor picks one or whose both sides are such, a group whose output is such. Anything else (a BSDF
+    of any colour, a texture, a muted node) counts as a shader: Atmos only acts where it is sure."""
+    if depth > 32:
+        return False
+    if not socket.is_linked:
+        return True
+    link = socket.links[0]
+    if link.is_muted or not link.is_valid:
+        return True
+    node = link.from_node
+    if node.mute:
+        return False
+    kind = node.bl_idname
+    if kind == "NodeReroute":
+        return _folds_away(node.inputs[0], depth + 1)
+    if kind in ("ShaderNodeEmission", "ShaderNodeBackground"):
+        return _is_zero(node.inputs["Color"]) or _is_zero(node.inputs["Strength"])
+    if kind == "ShaderNodeAddShader":
+        return _folds_away(node.inputs[0], depth + 1) and _folds_away(node.inputs[1], depth + 1)
+    if kind == "ShaderNodeMixShader":
+        factor = node.inputs[0]
+        if not factor.is_linked and factor.default_value <= 0.0:
+            return _folds_away(node.inputs[1], depth + 1)
+        if not factor.is_linked and factor.default_value >= 1.0:
+            return _folds_away(node.inputs[2], depth + 1)
+        return _folds_away(node.inputs[1], depth + 1) and _folds_away(node.inputs[2], depth + 1)
+    if kind == "ShaderNodeGroup" and node.node_tree is not None:
+        output = next((n for n in node.node_tree.nodes if n.bl_idname == "NodeGroupOutput" and n.is_active_output),
+                      None)
+        inner = None if output is None else next(
+            (i for i in output.inputs if i.identifier == link.from_socket.identifier), None)
+        return inner is not None and _folds_away(inner, depth + 1)
+    return False
+
+
+def surface_folds_away(tree) -> bool:
+    """True when the surface Cycles renders is nothing after constant folding and no volume is linked.
+
+    Measured (bpy 4.5.15, 5.2.3, 5.3.0): Cycles renders such a material, which without Atmos is opaque black, as if
+    it were transparent once the material also holds AOV outputs fed by shading data (Atmos' distance, view and
+    haze AOVs are): camera rays pass on to the world behind it (its AOVs still written) and it casts no shadow. A
+    black emissive target then composites as the sky behind it hazed, not as its haze. A volume-only material (no
+    surface, a volume linked) is transparent by design and left alone.
+    """
+    output = cycles_output(tree)
+    if output is None:
+        return False
+    volume = output.inputs.get("Volume")
+    return _folds_away(output.inputs["Surface"]) and not (volume is not None and volume.is_linked)
+
+
+def _opaque_nodes(material) -> list:
+    return [node for node in atmos_nodes(material) if node.get(TAG) in OPAQUE_TAGS]
+
+
+def _opaque_source(tree):
+    """The socket the user's Cycles output takes its surface from (None when unlinked)."""
+    output = cycles_output(tree)
+    surface = None if output is None else output.inputs["Surface"]
+    return surface.links[0].from_socket if surface is not None and surface.is_linked else None
+
+
+def keep_opaque(material, present: list | None = None) -> bool:
+    """Keep ``material`` opaque in Cycles while its surface folds away (:func:`surface_folds_away`); idempotent.
+
+    Three tagged nodes beside the user's, none of the user's links or values touched: a black Diffuse BSDF (a
+    closure Cycles keeps, which reflects nothing: the surface stays what it was without Atmos, opaque black and
+    casting shadows), an Add Shader of the user's surface shader and that black one (so an edit of the user's
+    shader's values still shows), and a Cycles-target Material Output carrying it with the user's Displacement and
+    Thickness. Eevee ignores a Cycles-target output. They are rebuilt when the user relinks the surface and removed
+    when it stops folding (the depsgraph handler calls this for edited materials). Returns True when anything
+    changed. ``present``: the material's opaque-keeping nodes when the caller knows them (none after a re-inject).
+    """
+    tree = material.node_tree
+    present = _opaque_nodes(material) if present is None else present
+    needed = surface_folds_away(tree)
+    source = _opaque_source(tree) if needed else None
+    if present and needed:
+        adds = [node for node in present if node.get(TAG) == OPAQUE_ADD_TAG]
+        current = adds[0].inputs[0].links[0].from_socket if adds and adds[0].inputs[0].is_linked else None
+        if len(present) == len(OPAQUE_TAGS) and current == source:
+            return False
+    if not present and not needed:
+        return False
+    _remove_nodes(material, present)
+    if not needed:
+        return True
+    user_output = cycles_output(tree)
+    x, y = free_spot(tree.nodes)
+    black = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    place_last(tree.nodes, x, y - 300.0)
+    black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    add = tree.nodes.new("ShaderNodeAddShader")
+    place_last(tree.nodes, x + 200.0, y - 300.0)
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    place_last(tree.nodes, x + 400.0, y - 300.0)
+    output.target = "CYCLES"
+    for node, tag, label in ((black, OPAQUE_BLACK_TAG, "Atmos: opaque black (Cycles)"),
+                             (add, OPAQUE_ADD_TAG, "Atmos: keeps the surface (Cycles)"),
+                             (output, OPAQUE_OUTPUT_TAG, "Atmos Output (Cycles): keeps the surface opaque")):
+        node[TAG] = tag
+        node.label = label
+    if source is not None:
+        tree.links.new(source, add.inputs[0])
+    tree.links.new(black.outputs[0], add.inputs[1])
+    tree.links.new(add.outputs[0], output.inputs["Surface"])
+    if user_output is not None:
+        for name in ("Displacement", "Thickness"):
+            copy_input(tree, user_output, output, name)
+    take_over_cycles_output(tree, output, user_output)
+    return True
+
+
+def follow_edits(depsgraph) -> None:
+    """After edits: keep the edited materials that carry the AOV group opaque where their surface now folds away,
+    and drop the opaque-keeping nodes where it no longer does (:func:`keep_opaque`; In-Render materials have their
+    own Cycles output and are left alone)."""
+    for update in depsgraph.updates:
+        material = getattr(update.id, "original", None)
+        if not isinstance(material, bpy.types.Material) or material.node_tree is None or material.library:
+            continue
+        if any(node.get(TAG) == 1 and node.bl_idname == "ShaderNodeGroup" for node in material.node_tree.nodes):
+            keep_opaque(material)
 
 
 def _surface_group_interface(tree) -> None:
@@ -351,10 +551,9 @@ def free_spot(nodes) -> tuple[float, float]:
 def place_last(nodes, x: float, y: float) -> None:
     """Move the last node of ``nodes`` to (x, y) without an RNA update.
 
-    Every node property write runs a node-tree update, which in Blender 4.2 scans every tree in the file
-    (``tools/bench_node_edits.py``), so a pass over N materials costs O(N^2) there; ``foreach_set`` writes
-    the raw locations (the other nodes get back the values just read) and skips that update. It saved a
-    third of a 4.2 enable.
+    Every node property write runs a node-tree update (24-32 us in a file of 5000 materials, Blender 4.5-5.3,
+    ``tools/bench_node_edits.py``); ``foreach_set`` writes the raw locations (the other nodes get back the values
+    just read) and skips that update.
     """
     locations = [0.0] * (2 * len(nodes))
     nodes.foreach_get("location", locations)
@@ -371,9 +570,8 @@ def inject(material, surface_group, tagged=None) -> None:
     just listed them (they are replaced).
     """
     tree = material.node_tree
-    for node in atmos_nodes(material) if tagged is None else tagged:
-        tree.nodes.remove(node)
-    opacity_socket, opacity_value, invert = _opacity(tree)
+    _remove_nodes(material, atmos_nodes(material) if tagged is None else tagged)
+    opacity_socket, opacity_value, invert = opacity(tree)
     x, y = free_spot(tree.nodes)
     node = tree.nodes.new("ShaderNodeGroup")
     place_last(tree.nodes, x, y)
@@ -385,25 +583,36 @@ def inject(material, surface_group, tagged=None) -> None:
         tree.links.new(opacity_socket, target)
     elif opacity_value is not None:
         target.default_value = opacity_value
+    keep_opaque(material, present=[])
+
+
+def _remove_nodes(material, tagged) -> None:
+    """Delete the tagged nodes ``tagged`` of ``material``, restoring what they remember: the material's Cycles
+    emission sampling and the user output that was active before one of them took over (:data:`REACTIVATE_KEY`)."""
+    if not tagged:
+        return
+    reactivate = None
+    for node in tagged:
+        sampling = node.get(EMISSION_SAMPLING_KEY)
+        if sampling is not None and getattr(material, "cycles", None) is not None:
+            material.cycles.emission_sampling = sampling
+        reactivate = node.get(REACTIVATE_KEY) or reactivate
+    nodes = material.node_tree.nodes
+    for node in tagged:
+        nodes.remove(node)
+    if reactivate and nodes.get(reactivate) is not None:
+        nodes[reactivate].is_active_output = True
 
 
 def remove(material) -> bool:
     """Delete exactly the Atmos-tagged nodes of ``material`` (and with them their links); True if any.
 
-    Settings the in-render nodes changed outside the tree (Cycles emission sampling, which output is active)
-    are restored from what those nodes remember (:func:`.in_render.restore_material_settings`).
+    Settings the tagged nodes changed outside the tree (Cycles emission sampling, which output is active) are
+    restored from what those nodes remember (:func:`_remove_nodes`).
     """
     tagged = atmos_nodes(material)
-    if not tagged:
-        return False
-    from .in_render import restore_material_settings
-
-    reactivate = restore_material_settings(material, tagged)
-    for node in tagged:
-        material.node_tree.nodes.remove(node)
-    if reactivate and material.node_tree.nodes.get(reactivate) is not None:
-        material.node_tree.nodes[reactivate].is_active_output = True
-    return True
+    _remove_nodes(material, tagged)
+    return bool(tagged)
 
 
 def inject_scene(scene, aerial_group, *, only_new: bool = False, evaluations=("COMPOSITOR",)) -> MaterialReport:

@@ -99,7 +99,8 @@ def lamp_values(scene: bpy.types.Scene, elevation_rad: float) -> tuple[tuple[flo
     settings = scene.atmos
     atmosphere = sync.atmosphere_from_settings(settings)
     diameter = float(settings.sun_angular_diameter)
-    colour, strength = sun_color_and_strength(elevation_rad, atmosphere, 0.0, 0.5 * diameter)
+    colour, strength = sun_color_and_strength(elevation_rad, atmosphere, 0.0, 0.5 * diameter,
+                                              float(settings.sun_limb_darkening))
     return tuple(float(c) for c in colour), float(strength), diameter
 
 

@@ -16,7 +16,7 @@ from bpy.app.handlers import persistent
 from mathutils import Vector
 
 from .. import import_sibling
-from . import group_integrity, world
+from . import group_integrity, materials, world
 from ..physics import Atmosphere, sun_irradiance_ground
 from ..physics.balanced import sun_optical_depths_ground
 from ..physics.sun import LUMINANCE_WEIGHTS
@@ -29,7 +29,7 @@ DEFAULT_SUN_DIRECTION = (0.0, math.sqrt(0.5), math.sqrt(0.5))
 _last_sun_matrix: dict[str, tuple] = {}
 _last_counts: dict[str, tuple[int, int]] = {}
 #: Per scene: (settings values, Atmosphere) and ((settings values, elevation, sun radius), E_sun, colour, strength).
-#: A slider that moves neither the atmosphere nor the sun (distance scale, albedo, limb darkening) skips the physics.
+#: A slider that moves neither the atmosphere nor the sun (distance scale, albedo) skips the physics.
 _last_atmosphere: dict[str, tuple] = {}
 _last_sun_values: dict[str, tuple] = {}
 _last_camera_z: dict[str, float | None] = {}
@@ -144,14 +144,16 @@ def _atmosphere(scene, settings) -> tuple[tuple, Atmosphere]:
     return key, atmosphere
 
 
-def _sun_values(scene, key: tuple, atmosphere: Atmosphere, elevation_rad: float, sun_radius: float):
+def _sun_values(scene, key: tuple, atmosphere: Atmosphere, elevation_rad: float, sun_radius: float,
+                limb_darkening: float):
     """E_sun at the ground, the lamp's colour and strength (as :func:`sun_color_and_strength` splits it) and the
     sun's ground optical depths (tau_R, tau_M) of the Balanced level, cached."""
-    sun_key = (key, elevation_rad, sun_radius)
+    sun_key = (key, elevation_rad, sun_radius, limb_darkening)
     cached = _last_sun_values.get(scene.name)
     if cached is not None and cached[0] == sun_key:
         return cached[1:]
-    irradiance = np.asarray(sun_irradiance_ground(elevation_rad, atmosphere, 0.0, sun_radius), dtype=float)
+    irradiance = np.asarray(sun_irradiance_ground(elevation_rad, atmosphere, 0.0, sun_radius, limb_darkening),
+                            dtype=float)
     strength = float(irradiance @ LUMINANCE_WEIGHTS)
     colour = tuple(float(c) for c in irradiance / strength) if strength > 0.0 else (1.0, 1.0, 1.0)
     depths = sun_optical_depths_ground(elevation_rad, atmosphere)
@@ -179,7 +181,8 @@ def sync_scene(scene) -> None:
     elevation_rad = math.asin(float(np.clip(direction[2], -1.0, 1.0)))
     diameter = float(settings.sun_angular_diameter)
     sun_radius = 0.5 * diameter
-    irradiance, colour, strength, sun_depths = _sun_values(scene, key, atmosphere, elevation_rad, sun_radius)
+    irradiance, colour, strength, sun_depths = _sun_values(scene, key, atmosphere, elevation_rad, sun_radius,
+                                                           float(settings.sun_limb_darkening))
     enabled = settings.enabled
     if enabled:
         ensure_group(scene)  # cheap when current; rebuilds in place when the feature set changed
@@ -321,6 +324,8 @@ def on_depsgraph_update(scene, depsgraph) -> None:
         from . import sun_lamp
 
         sun_lamp.follow(scene)   # keys edited at other frames, a parent or a target moved, the frame range changed
+    if depsgraph.id_type_updated("MATERIAL"):
+        materials.follow_edits(depsgraph)   # a surface Cycles folds away stays opaque
     counts = (len(bpy.data.materials), len(scene.objects))
     if _last_counts.get(scene.name) != counts:
         _last_counts[scene.name] = counts
@@ -341,8 +346,10 @@ def _resync_all() -> None:
 
 @persistent
 def on_load_post(*_args) -> None:
-    """After a file loads: rebuild stale node groups and re-sync every scene with the effect on."""
+    """After a file loads: rebuild stale node groups and re-sync every scene with the effect on; subscribe to the
+    render settings again (loading a file clears the message bus)."""
     _resync_all()
+    _subscribe()
 
 
 @persistent
@@ -362,6 +369,32 @@ def on_undo_redo(*_args) -> None:
     _resync_all()
 
 
+#: The owner of Atmos' message-bus subscriptions (cleared on unregister, made again after a file loads).
+_MSGBUS_OWNER = object()
+
+
+def follow_render_settings(*_args) -> None:
+    """Switch every enabled scene whose render settings now call for another mode (the engine changed, Cycles'
+    Open Shading Language toggled: :func:`.in_render.fallback_reason`). The message bus calls this when the user
+    changes those settings in the interface; Cycles' settings do not tag the depsgraph, so the depsgraph handler
+    would see the change only at the next edit."""
+    from . import effect
+
+    for scene in bpy.data.scenes:
+        if getattr(scene, "atmos", None) is not None and effect.mode_mismatch(scene):
+            effect.enable_effect(scene)
+
+
+def _subscribe() -> None:
+    bpy.msgbus.clear_by_owner(_MSGBUS_OWNER)
+    keys = [(bpy.types.RenderSettings, "engine")]
+    cycles = getattr(bpy.types, "CyclesRenderSettings", None)
+    if cycles is not None:
+        keys.append((cycles, "shading_system"))
+    for key in keys:
+        bpy.msgbus.subscribe_rna(key=key, owner=_MSGBUS_OWNER, args=(), notify=follow_render_settings)
+
+
 HANDLERS = (
     (bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
     (bpy.app.handlers.load_post, on_load_post),
@@ -374,6 +407,7 @@ def add_handlers() -> None:
     for handler_list, function in HANDLERS:
         if function not in handler_list:
             handler_list.append(function)
+    _subscribe()
 
 
 def remove_handlers() -> None:
@@ -385,4 +419,5 @@ def remove_handlers() -> None:
                 and getattr(registered, "__qualname__", None) == function.__qualname__
             ):
                 handler_list.remove(registered)
+    bpy.msgbus.clear_by_owner(_MSGBUS_OWNER)
     forget()

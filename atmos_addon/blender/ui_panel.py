@@ -14,7 +14,7 @@ from __future__ import annotations
 import bpy
 
 from .. import presets
-from . import group_integrity, preset_ops
+from . import group_integrity, limits, preset_ops
 
 
 def _settings(context):
@@ -110,10 +110,6 @@ def _split(layout):
     return layout
 
 
-#: The first Blender whose viewport compositor gets the render passes Atmos writes (AOVs); 4.2's gets only Image
-#: and Alpha (its manual). 4.3.2 and 5.2.2 measured (docs/viewport.md).
-VIEWPORT_AOVS_SINCE = (4, 3, 0)
-EEVEE_ENGINES = frozenset({"BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"})
 
 
 def viewport_note(scene) -> str:
@@ -128,14 +124,10 @@ def viewport_note(scene) -> str:
     engine = scene.render.engine
     if engine == "CYCLES" and in_render.effective_mode(scene) == "IN_RENDER":
         return "Viewport: the haze shows in Rendered shading"
-    if engine not in EEVEE_ENGINES and engine != "CYCLES":
+    if engine not in limits.EEVEE_ENGINES and engine != "CYCLES":
         return "This engine renders no Atmos haze: use Eevee or Cycles"
-    if bpy.app.version < VIEWPORT_AOVS_SINCE:
-        return "Viewport: no haze (this Blender's viewport compositor gets no AOVs); renders have it"
     if engine == "CYCLES":
-        if in_render.supported():
-            return "Viewport: no haze in Cycles in this mode (no passes); In-Render mode shows it"
-        return "Viewport: no haze in Cycles (no passes in its viewport compositor); renders have it"
+        return "Viewport: no haze in Cycles in this mode (no passes); In-Render mode shows it"
     return "Viewport: set Viewport Shading > Compositor to Always to see the haze"
 
 
@@ -155,9 +147,12 @@ class ATMOS_PT_atmosphere(_WorldPanel, bpy.types.Panel):
         layout.prop(settings, "render_mode", expand=True)
         from . import in_render
 
-        reason = in_render.unavailable_reason(context.scene)
+        reason = in_render.fallback_reason(context.scene)
         if reason:
             layout.label(text=reason, icon="INFO")
+        if limits.clip_range_warning(context.scene):
+            needed = limits.largest_clip_start_needed(context.scene.camera)
+            layout.label(text=f"Eevee shows a flat sky: raise the camera's Clip Start to {needed:.3g}", icon="ERROR")
         if not settings.enabled:
             layout.label(text="Off: tick the box to add the atmosphere to the scene", icon="INFO")
         else:

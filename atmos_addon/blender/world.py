@@ -25,7 +25,7 @@ import warnings
 
 import bpy
 
-from .materials import TAG
+from .materials import REACTIVATE_KEY, TAG
 
 STATE_KEY = "atmos_sky"
 CREATED_WORLD_NAME = "Atmos Sky World"
@@ -39,8 +39,6 @@ CYCLES_OUTPUT_TAG = "sky cycles output"
 #: Every tag of the nodes :func:`install_sky` adds.
 TAGS = (SKY_NODE_TAG, BACKGROUND_TAG, LIGHTING_TAG, LIGHTING_BACKGROUND_TAG, RAY_SWITCH_TAG, MIX_TAG,
         CYCLES_OUTPUT_TAG)
-#: Custom property on the added Cycles output: the user's Cycles output that was active before (re-activated).
-REACTIVATE_KEY = "atmos_reactivate"
 #: Cycles world importance map width (pixels) while the Atmos sky is in the world (height is half).
 SKY_IMPORTANCE_MAP_RESOLUTION = 256
 

@@ -143,3 +143,37 @@ def single_scattering(camera_altitude_m: float, view_dir: ArrayLike, distance_m:
                   * phase_hg(mu, atm.mie_g))
     integrand = scattering * e_top * sun_transmittance_numerical(points, sun, atm, n_sun) * np.exp(-tau_view)
     return np.exp(-tau_view[-1]), _simpson(integrand, step, axis=0)
+
+
+def sun_irradiance_numerical(elevation_rad: float, atm: Atmosphere, altitude_m: float = 0.0,
+                             angular_radius_rad: float = float(np.radians(0.2666)), limb_darkening: float = 0.6,
+                             n_rows: int = 201, n_columns: int = 201, n_steps: int = 4001) -> np.ndarray:
+    """Ground irradiance of the sun's disk, per channel (3,), by brute force over the disk, units of E_sun0.
+
+    E = E_sun0 * integral over the visible disk of I(x, y) T(elevation + rho y) dx dy / integral over the whole
+    disk of I dx dy, with I = 1 - u (1 - sqrt(1 - x^2 - y^2)) (linear limb darkening, flat disk of radius rho,
+    x and y in units of rho), T the transmittance toward the point (:func:`optical_depth_numerical`, straight rays,
+    0 below the geometric horizon seen from ``altitude_m``). Simpson's rule on ``n_rows`` heights y and
+    ``n_columns`` points across each chord (both odd). Shares nothing with :mod:`.sun` but the geometry.
+    """
+    rows, columns = _odd(n_rows, "n_rows"), _odd(n_columns, "n_columns")
+    radius = atm.planet_radius + max(float(altitude_m), 0.0)
+    horizon = -float(np.arccos(np.clip(atm.planet_radius / radius, -1.0, 1.0)))
+    y = np.linspace(-1.0, 1.0, rows)
+    x_unit = np.linspace(-1.0, 1.0, columns)
+    u = float(limb_darkening)
+    chord_flux = np.empty(rows)
+    for index, height in enumerate(y):
+        half = np.sqrt(max(1.0 - height * height, 0.0))
+        x = half * x_unit
+        intensity = 1.0 - u * (1.0 - np.sqrt(np.maximum(1.0 - x * x - height * height, 0.0)))
+        chord_flux[index] = _simpson(intensity, half * 2.0 / (columns - 1)) if half > 0.0 else 0.0
+    transmittance = np.zeros((rows, 3))
+    for index, height in enumerate(y):
+        point_elevation = float(elevation_rad) + angular_radius_rad * height
+        if point_elevation >= horizon:
+            tau = optical_depth_numerical(altitude_m, 0.5 * np.pi - point_elevation, atm, n_steps)
+            transmittance[index] = np.exp(-tau)
+    step = 2.0 / (rows - 1)
+    total = _simpson(chord_flux, step)
+    return atm.sun_irradiance_top * _simpson(chord_flux[:, np.newaxis] * transmittance, step, axis=0) / total

@@ -70,14 +70,11 @@ from .aerial_perspective import nonnegative_distance, one_minus_exp_over_x
 from .atmosphere import Atmosphere
 from .optical_depth import chapman
 from .phase import clamp_cosine, phase_hg, phase_rayleigh
-from .sun import SUN_ANGULAR_RADIUS_RAD, horizon_dip_rad, sun_irradiance_ground
+from .sun import SUN_ANGULAR_RADIUS_RAD, SUN_LIMB_DARKENING, horizon_dip_rad, sun_irradiance_ground
 
 #: Shape parameter p of the closed-form Chapman approximation (:func:`chapman_approx`), fitted minimax over
 #: x in [300, 6400] and elevations 0..90 deg: maximum relative error 0.40 %.
 CHAPMAN_APPROX_P = 0.653
-#: Linear limb-darkening coefficient of the sun in the visible, I(mu) / I(1) = 1 - u (1 - mu) (about 0.6 at
-#: 550 nm; Neckel & Labs 1994 give 0.5 in the red to 0.7 in the blue).
-SUN_LIMB_DARKENING = 0.6
 #: Gauss-Legendre nodes of the limb-darkening normalisation over the disk.
 LIMB_QUADRATURE_NODES = 16
 
@@ -400,7 +397,7 @@ def sun_disk_radiance(atm: Atmosphere, elevation_rad: ArrayLike,
     integral over the disk is again E_sun; 0 outside the disk.
     """
     radius = float(angular_radius_rad)
-    e_sun = sun_irradiance_ground(elevation_rad, atm, altitude_m, radius)
+    e_sun = sun_irradiance_ground(elevation_rad, atm, altitude_m, radius, limb_darkening)
     mean = e_sun / sun_disk_solid_angle(radius)
     if offset_rad is None:
         return mean

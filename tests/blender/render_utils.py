@@ -21,7 +21,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-#: Eevee's engine id: ``BLENDER_EEVEE_NEXT`` in Blender 4.2-4.5, ``BLENDER_EEVEE`` from 5.0.
+#: Eevee's engine id: ``BLENDER_EEVEE_NEXT`` in Blender 4.5, ``BLENDER_EEVEE`` from 5.0.
 EEVEE_ENGINE = "BLENDER_EEVEE_NEXT" if bpy.app.version < (5, 0, 0) else "BLENDER_EEVEE"
 ENGINES = ("CYCLES", EEVEE_ENGINE)
 
@@ -40,7 +40,7 @@ def make_camera(scene: bpy.types.Scene, *, location: Sequence[float] = (0.0, 0.0
 
     With the default rotation the camera looks down -Z with +Y up, the image's +x to the right.
     Keep ``clip_end / clip_start`` at about 1e4 or less: with a much larger ratio (1e-3 to 1e6 measured)
-    Eevee silently drops objects that do not cover the view centre, in 4.2 and 5.0 alike.
+    Eevee silently drops objects that do not cover the view centre (measured in 4.2 and 5.0).
     """
     data = bpy.data.cameras.new("Test Camera")
     data.sensor_fit = "HORIZONTAL"
@@ -161,7 +161,7 @@ def pixel_centre_directions(camera: bpy.types.Object, width: int, height: int) -
 
 
 def set_use_nodes(idblock, value: bool = True) -> None:
-    """``idblock.use_nodes = value`` without Blender 5.0's deprecation warning (the tests still run on 4.2)."""
+    """``idblock.use_nodes = value`` without Blender 5.0's deprecation warning (4.5 still needs it set)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         idblock.use_nodes = value
@@ -252,3 +252,22 @@ def user_compositor(scene: bpy.types.Scene):
     tree.links.new(layers.outputs["Image"], glare.inputs["Image"])
     tree.links.new(glare.outputs["Image"], output.inputs[0])
     return tree
+
+
+def snapshot_tree(tree) -> tuple | None:
+    """Nodes (name, type, location, label, active output, input values) and links of a node tree, for exact
+    before/after comparisons."""
+    if tree is None:
+        return None
+    nodes = []
+    for node in tree.nodes:
+        values = tuple(
+            (s.identifier, tuple(s.default_value) if hasattr(s.default_value, "__len__") else s.default_value)
+            for s in node.inputs if hasattr(s, "default_value")
+        )
+        nodes.append((node.name, node.bl_idname, tuple(node.location), node.label,
+                      getattr(node, "is_active_output", None), values))
+    links = sorted(
+        (l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier) for l in tree.links
+    )
+    return sorted(nodes), links

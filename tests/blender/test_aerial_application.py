@@ -229,7 +229,7 @@ def test_missing_compositor_is_created_and_removed() -> None:
     if IS_5:
         assert after == before
         assert compositor.CREATED_TREE_NAME not in bpy.data.node_groups
-    else:  # 4.2 keeps the (now empty) embedded tree that use_nodes created
+    else:  # 4.5 keeps the (now empty) embedded tree that use_nodes created
         assert after[0] == before[0] and after[2] == before[2] and after[1] in (None, ([], []))
     assert compositor.GROUP_NAME not in bpy.data.node_groups
 

@@ -139,11 +139,6 @@ def test_apply_writes_a_blend_with_the_effect(workdir: Path) -> None:
 def test_apply_in_render_mode_writes_the_domes(workdir: Path) -> None:
     import bpy
 
-    if bpy.app.version < (4, 5, 0):
-        proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--engine", "cycles",
-                       "--mode", "in-render", "--output", str(workdir / "x.blend"), cwd=workdir)
-        assert_one_line_error(proc, "--mode in-render", "4.5")
-        return
     out = workdir / "in_render.blend"
     proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--engine", "cycles",
                    "--mode", "in-render", "--output", str(out), cwd=workdir)

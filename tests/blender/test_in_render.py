@@ -32,8 +32,6 @@ EEVEE = "BLENDER_EEVEE" if bpy.app.version >= (5, 0, 0) else "BLENDER_EEVEE_NEXT
 WORLD_COLOUR = (0.05, 0.1, 0.2)
 WIDTH, HEIGHT, FOV = 32, 16, math.radians(20.0)
 TOLERANCE = 2e-3
-needs_in_render = pytest.mark.skipif(not in_render.supported(),
-                                     reason="In-Render mode needs Blender 4.5+ (test_in_render_falls_back_on_old_blender)")
 
 
 @pytest.fixture(autouse=True)
@@ -128,7 +126,6 @@ def _build_planes(scene):
     return view, mirror_point, normal, reflected
 
 
-@needs_in_render
 def test_in_render_parity_direct_and_mirrored(tmp_path: Path) -> None:
     scene, _sun = _scene()
     scene.cycles.max_bounces = scene.cycles.glossy_bounces = 2
@@ -190,7 +187,6 @@ SKY_MIRRORS = tuple((column, row, distance, elevation)
 BEYOND_MIRRORS = ((12, -3.0, -1.0), (28, -6.0, 1.0))
 
 
-@needs_in_render
 def test_reflections_anywhere_see_the_cameras_sky(tmp_path: Path) -> None:
     """A reflected ray leaves the camera-centred domes after its own length, not the camera's: the domes'
     transparent filters make up the difference, so a mirror 300 m to 50 km away, above or below the camera,
@@ -234,7 +230,6 @@ def test_reflections_anywhere_see_the_cameras_sky(tmp_path: Path) -> None:
         np.testing.assert_allclose(got, expected, rtol=TOLERANCE, atol=0, err_msg=name)
 
 
-@needs_in_render
 def test_in_render_sky_equals_the_compositor_sky(tmp_path: Path) -> None:
     """The Atmos sky seen directly: In-Render (attenuated by the domes, compensated) = Compositor within 0.5 %."""
     scene, sun = _scene()
@@ -292,7 +287,6 @@ def _noise(scene, tmp_path: Path, name: str) -> np.ndarray:
     return (first - second).std(axis=(0, 1)) / math.sqrt(2.0)
 
 
-@needs_in_render
 def test_in_render_adds_no_noise(tmp_path: Path) -> None:
     """Noise over the wall, divided by its F_ex, equals the noise of the render without the effect within 5 %."""
     scene = _noise_scene()
@@ -331,7 +325,6 @@ def _file_snapshot(scene) -> tuple:
     )
 
 
-@needs_in_render
 def test_in_render_removal_restores_the_scene_exactly() -> None:
     scene, _sun = _scene()
     _build_planes(scene)
@@ -363,7 +356,6 @@ def test_in_render_removal_restores_the_scene_exactly() -> None:
     assert _file_snapshot(scene) == before
 
 
-@needs_in_render
 def test_switching_modes_and_engines() -> None:
     scene, _sun = _scene()
     _build_planes(scene)
@@ -387,7 +379,6 @@ def test_switching_modes_and_engines() -> None:
     assert _file_snapshot(scene) == before
 
 
-@needs_in_render
 def test_in_render_file_renders_the_same_without_the_addon(tmp_path: Path) -> None:
     scene, _sun = _scene()
     scene.cycles.max_bounces = scene.cycles.glossy_bounces = 2
@@ -406,20 +397,6 @@ def test_in_render_file_renders_the_same_without_the_addon(tmp_path: Path) -> No
     np.testing.assert_array_equal(without, with_addon)
 
 
-@pytest.mark.skipif(in_render.supported(), reason="only on Blender older than 4.5")
-def test_in_render_falls_back_on_old_blender() -> None:
-    """Blender 4.2: asking for In-Render renders with the Compositor mode and says why."""
-    scene, _sun = _scene()
-    _build_planes(scene)
-    scene.atmos.render_mode = "IN_RENDER"
-    report = effect.enable_effect(scene)
-    assert not in_render.is_installed(scene)
-    assert "4.5" in in_render.unavailable_reason(scene)
-    assert any("4.5" in line for line in report.messages)
-    assert any(n.get(materials.TAG) for n in bpy.data.materials["Near"].node_tree.nodes)
-
-
-@needs_in_render
 def test_thick_haze_warns_where_the_sky_compensation_stops() -> None:
     scene, _sun = _scene()
     scene.atmos.render_mode = "IN_RENDER"
@@ -429,7 +406,6 @@ def test_thick_haze_warns_where_the_sky_compensation_stops() -> None:
     assert not any("optical depth" in line for line in report.messages)
 
 
-@needs_in_render
 def test_transparent_bounces_come_back_even_at_blenders_limit() -> None:
     """The dome crossings' budget is added and given back exactly, also where Blender clamps it (1024)."""
     scene, _sun = _scene()

@@ -2,7 +2,7 @@
 """Production robustness, continued: hand edits inside the Atmos node groups are noticed and can be reset;
 objects appended or linked from other .blend files; the cost of a parameter change.
 
-Headless, ``depsgraph_update_post`` fires on ``bpy.context.view_layer.update()`` (4.2 to 5.0 alike).
+Headless, ``depsgraph_update_post`` fires on ``bpy.context.view_layer.update()`` (4.5 to 5.3 alike).
 """
 
 from __future__ import annotations

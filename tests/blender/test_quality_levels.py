@@ -147,8 +147,6 @@ def test_auto_summary_reads_the_scene():
 
 
 def test_in_render_mode_builds_fast_segments_and_says_so():
-    if not in_render.supported():
-        pytest.skip("In-Render mode needs Blender 4.5+")
     scene = _scene()
     scene.render.engine = "CYCLES"
     scene.atmos.render_mode = "IN_RENDER"

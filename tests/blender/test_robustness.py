@@ -3,7 +3,7 @@
 edits, several scenes, many enable/disable cycles and bad input (undo and redo: ``test_undo.py``).
 
 Handlers in the ``bpy`` module: ``depsgraph_update_post`` fires headless when the depsgraph is
-evaluated, so the tests call ``bpy.context.view_layer.update()`` after a change (4.2 and 5.0 alike);
+evaluated, so the tests call ``bpy.context.view_layer.update()`` after a change (4.5 to 5.3 alike);
 ``load_post`` fires on ``bpy.ops.wm.open_mainfile``.
 """
 
@@ -26,6 +26,7 @@ import atmos_addon
 from atmos_addon.blender import compositor, effect, materials, sync
 
 import render_utils
+from render_utils import snapshot_tree as snapshot
 
 IS_5 = bpy.app.version >= (5, 0, 0)
 PARAMETERS = ("atmos_beta_rayleigh", "atmos_beta_mie", "atmos_beta_mie_absorption", "atmos_mie_g",
@@ -123,23 +124,6 @@ def world(scene, colour=(0.05, 0.1, 0.2)):
     data.node_tree.nodes["Background"].inputs["Color"].default_value = (*colour, 1.0)
     scene.world = data
     return data
-
-
-def snapshot(tree) -> tuple:
-    """Nodes (name, type, location, input values) and links of a tree, for exact before/after comparisons."""
-    if tree is None:
-        return None
-    nodes = []
-    for node in tree.nodes:
-        values = tuple(
-            (s.identifier, tuple(s.default_value) if hasattr(s.default_value, "__len__") else s.default_value)
-            for s in node.inputs if hasattr(s, "default_value")
-        )
-        nodes.append((node.name, node.bl_idname, tuple(node.location), node.label, values))
-    links = sorted(
-        (l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier) for l in tree.links
-    )
-    return sorted(nodes), links
 
 
 def user_part(material) -> tuple:

@@ -264,17 +264,15 @@ def test_every_panel_draws_for_every_builtin_preset(addon):
 
 def test_the_panel_says_what_the_viewport_shows(addon):
     """One line under the mode row, from what GUI Blender 4.3.2 and 5.2.2 showed (docs/viewport.md): Eevee's
-    viewport compositor gets the AOVs (4.3+), Cycles' gets no passes, In-Render is shading (Cycles, 4.5+)."""
+    viewport compositor gets the AOVs, Cycles' gets no passes, In-Render is shading (Cycles)."""
     scene = bpy.context.scene
     add_sun(scene)
-    aovs = bpy.app.version >= ui_panel.VIEWPORT_AOVS_SINCE
-    in_render = bpy.app.version >= (4, 5, 0)
     expected = {
-        ("CYCLES", "COMPOSITOR"): "no haze in Cycles in this mode" if in_render and aovs else "no haze",
-        ("CYCLES", "PER_PIXEL"): "no haze in Cycles in this mode" if in_render and aovs else "no haze",
-        ("CYCLES", "IN_RENDER"): "the haze shows in Rendered shading" if in_render else "no haze",
-        (EEVEE_ENGINE, "COMPOSITOR"): "Compositor to Always" if aovs else "no haze",
-        (EEVEE_ENGINE, "IN_RENDER"): "Compositor to Always" if aovs else "no haze",   # Eevee renders it as Compositor
+        ("CYCLES", "COMPOSITOR"): "no haze in Cycles in this mode",
+        ("CYCLES", "PER_PIXEL"): "no haze in Cycles in this mode",
+        ("CYCLES", "IN_RENDER"): "the haze shows in Rendered shading",
+        (EEVEE_ENGINE, "COMPOSITOR"): "Compositor to Always",
+        (EEVEE_ENGINE, "IN_RENDER"): "Compositor to Always",   # Eevee renders it as Compositor
         ("BLENDER_WORKBENCH", "PER_PIXEL"): "This engine renders no Atmos haze",
     }
     for (engine, mode), words in expected.items():
@@ -284,6 +282,25 @@ def test_the_panel_says_what_the_viewport_shows(addon):
     effect.enable_effect(scene)
     scene.render.engine, scene.atmos.render_mode = "CYCLES", "COMPOSITOR"
     assert ("label", ui_panel.viewport_note(scene)) in draw_everything(scene)
+
+
+def test_the_panel_says_why_the_mode_differs_and_when_eevee_shows_a_flat_sky(addon):
+    """With OSL on in Cycles the panel says the haze is applied In-Render and why; with a camera clip range over
+    Eevee's limit it says to raise Clip Start (and by how much); otherwise neither line is drawn."""
+    scene = bpy.context.scene
+    add_sun(scene)
+    camera = make_camera(scene, clip_start=0.1, clip_end=1000.0)
+    labels = lambda: [call[1] for call in draw_everything(scene) if call[0] == "label"]  # noqa: E731
+    scene.render.engine = "CYCLES"
+    assert not any("Open Shading" in text or "Clip Start" in text for text in labels() if text)
+    scene.cycles.shading_system = True
+    assert any(text and text.startswith("Open Shading Language is on") for text in labels())
+    scene.cycles.shading_system = False
+    scene.render.engine = EEVEE_ENGINE
+    camera.data.clip_end = 5.0e6
+    assert "Eevee shows a flat sky: raise the camera's Clip Start to 0.312" in labels()
+    camera.data.clip_start = 1.0
+    assert not any(text and "Clip Start" in text for text in labels())
 
 
 def test_apply_preset_sets_settings_within_float32_and_the_sun(addon):
