@@ -298,17 +298,6 @@ def _raise_clip_end(scene, needed: float) -> None:
 # -- the world ------------------------------------------------------------------------------------------
 
 
-def _world_output(tree):
-    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.get(TAG) not in WORLD_TAGS]
-    for candidates in ([n for n in outputs if n.target == "CYCLES" and n.is_active_output],
-                       [n for n in outputs if n.target == "CYCLES"],
-                       [n for n in outputs if n.target == "ALL" and n.is_active_output],
-                       [n for n in outputs if n.target == "ALL"]):
-        if candidates:
-            return candidates[0]
-    return None
-
-
 def world_nodes(world) -> list:
     """The nodes in-render mode added to ``world``'s tree."""
     if world is None or world.node_tree is None:
@@ -323,7 +312,7 @@ def install_world(scene, features) -> str | None:
         return None
     remove_world(world)
     tree = world.node_tree
-    output = _world_output(tree)
+    output = materials.cycles_output(tree, "ShaderNodeOutputWorld", WORLD_TAGS)
     if output is None or not output.inputs["Surface"].is_linked:
         return None
     from .world import camera_background

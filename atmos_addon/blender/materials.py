@@ -141,14 +141,44 @@ def skip_reason(material) -> str | None:
     return None
 
 
-def _active_output(tree):
+def _output_nodes(tree, kind: str = "ShaderNodeOutputMaterial", skip_tags=None) -> list:
+    """The output nodes of type ``kind``, without Atmos' own: every tagged one, or those tagged ``skip_tags``."""
+    if skip_tags is None:
+        return [node for node in tree.nodes if node.bl_idname == kind and not node.get(TAG)]
+    return [node for node in tree.nodes if node.bl_idname == kind and node.get(TAG) not in skip_tags]
+
+
+def _active_of(outputs):
+    """The output the surface's opacity is read from: the active "All" one, else the first active one."""
     best = None
-    for node in tree.nodes:
-        if node.bl_idname == "ShaderNodeOutputMaterial" and node.is_active_output:
+    for node in outputs:
+        if node.is_active_output:
             if node.target == "ALL":
                 return node
             best = best or node
     return best
+
+
+def _cycles_of(outputs):
+    """The output Cycles renders: an active one with target Cycles, any Cycles one, else the active "All" one, else
+    any "All" one."""
+    best, best_rank = None, 4
+    for node in outputs:
+        target = node.target
+        if target not in ("CYCLES", "ALL"):
+            continue
+        rank = (0 if target == "CYCLES" else 2) + (0 if node.is_active_output else 1)
+        if rank < best_rank:
+            best, best_rank = node, rank
+    return best
+
+
+def _surface_link(output):
+    """The link into ``output``'s Surface, or None (one ``links`` lookup, the slow part of reading a socket)."""
+    if output is None:
+        return None
+    surface = output.inputs["Surface"]
+    return surface.links[0] if surface.is_linked else None
 
 
 #: Shaders through which Atmos sees what lies behind: a Transparent BSDF shows the surface behind, a Holdout cuts a
@@ -157,17 +187,19 @@ def _active_output(tree):
 SEE_THROUGH_SHADERS = frozenset({"ShaderNodeBsdfTransparent", "ShaderNodeHoldout"})
 
 
-def opacity(tree):
+def opacity(tree, link=False, shader=None):
     """The surface's opacity as ``(socket, None, invert)``, ``(None, constant, False)``, or ``(None, None, False)``
     when opaque.
 
     Found for a Principled BSDF (its Alpha input), a Holdout (opacity 0), or a Mix Shader with a Transparent BSDF
-    or a Holdout on one side (its factor, or one minus it) feeding the active Material Output.
+    or a Holdout on one side (its factor, or one minus it) feeding the active Material Output. ``link``: the link
+    into that output's Surface when the caller has it (None: unlinked), ``shader`` its source node.
     """
-    output = _active_output(tree)
-    if output is None or not output.inputs["Surface"].is_linked:
+    if link is False:
+        link = _surface_link(_active_of(_output_nodes(tree)))
+    if link is None:
         return None, None, False
-    shader = output.inputs["Surface"].links[0].from_node
+    shader = link.from_node if shader is None else shader
     if shader.bl_idname == "ShaderNodeHoldout":
         return None, 0.0, False
     if shader.bl_idname == "ShaderNodeBsdfPrincipled":
@@ -191,17 +223,11 @@ def opacity(tree):
 # -- the output Cycles renders, and surfaces Cycles folds away ------------------------------------------------
 
 
-def cycles_output(tree):
-    """The Material Output Cycles renders: an active one with target Cycles, any Cycles one, else the active "All"
-    one, else any "All" one (Atmos' own outputs left out)."""
-    outputs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and not n.get(TAG)]
-    for candidates in ([n for n in outputs if n.target == "CYCLES" and n.is_active_output],
-                       [n for n in outputs if n.target == "CYCLES"],
-                       [n for n in outputs if n.target == "ALL" and n.is_active_output],
-                       [n for n in outputs if n.target == "ALL"]):
-        if candidates:
-            return candidates[0]
-    return None
+def cycles_output(tree, kind: str = "ShaderNodeOutputMaterial", skip_tags=None):
+    """The output node (of type ``kind``: material or world) Cycles renders: an active one with target Cycles, any
+    Cycles one, else the active "All" one, else any "All" one (Atmos' own outputs left out: every tagged one, or
+    those tagged ``skip_tags``)."""
+    return _cycles_of(_output_nodes(tree, kind, skip_tags))
 
 
 def copy_input(tree, source_output, target_output, name: str) -> None:
@@ -243,15 +269,27 @@ def _is_zero(socket) -> bool:
 
 
 def _folds_away(socket, depth: int = 0) -> bool:
-    """True when the shader linked into ``socket`` (a shader input) is nothing after Cycles' constant folding: no
-    link, an Emission or Background of colour 0 or strength 0, an Add Shader of two such, a Mix Shader whose
-    constant factor picks one or whose both sides are such, a group whose output is such. Anything else (a BSDF
-    of any colour, a texture, a muted node) counts as a shader: Atmos only acts where it is sure."""
+    """True when the shader linked into ``socket`` (a shader input) is nothing after Cycles' constant folding
+    (:func:`_link_folds_away`; no link is nothing)."""
+    return not socket.is_linked or _link_folds_away(socket.links[0], depth)
+
+
+#: Shader nodes that can fold away; any other source of a surface is a shader (the fast exit of the check).
+_FOLDABLE = frozenset({"NodeReroute", "ShaderNodeEmission", "ShaderNodeBackground", "ShaderNodeAddShader",
+                       "ShaderNodeMixShader", "ShaderNodeGroup"})
+
+
+def _link_folds_away(link, depth: int = 0, node=None) -> bool:
+    """True when the shader ``link`` carries is nothing after Cycles' constant folding: an Emission or Background
+    of colour 0 or strength 0, an Add Shader of two such, a Mix Shader whose constant factor picks one or whose
+    both sides are such, a group whose output is such (a muted link is no link). Anything else (a BSDF of any
+    colour, a texture, a muted node) counts as a shader: Atmos only acts where it is sure. ``node``: the link's
+    source node when the caller has it."""
     if depth > 32:
         return False
-    if not socket.is_linked:
-        return True
-    link = socket.links[0]
+    node = link.from_node if node is None else node
+    if node.bl_idname not in _FOLDABLE and not link.is_muted:
+        return False
     if link.is_muted or not link.is_valid:
         return True
     node = link.from_node
@@ -280,34 +318,31 @@ def _folds_away(socket, depth: int = 0) -> bool:
     return False
 
 
-def surface_folds_away(tree) -> bool:
+def surface_folds_away(tree, output=False, link=False, shader=None) -> bool:
     """True when the surface Cycles renders is nothing after constant folding and no volume is linked.
 
     Measured (bpy 4.5.15, 5.2.3, 5.3.0): Cycles renders such a material, which without Atmos is opaque black, as if
     it were transparent once the material also holds AOV outputs fed by shading data (Atmos' distance, view and
     haze AOVs are): camera rays pass on to the world behind it (its AOVs still written) and it casts no shadow. A
     black emissive target then composites as the sky behind it hazed, not as its haze. A volume-only material (no
-    surface, a volume linked) is transparent by design and left alone.
+    surface, a volume linked) is transparent by design and left alone. ``output``, ``link``: the output Cycles
+    renders, the link into its Surface and that link's source node, when the caller has them.
     """
-    output = cycles_output(tree)
+    output = cycles_output(tree) if output is False else output
     if output is None:
         return False
+    link = _surface_link(output) if link is False else link
+    if link is not None and not _link_folds_away(link, node=shader):
+        return False
     volume = output.inputs.get("Volume")
-    return _folds_away(output.inputs["Surface"]) and not (volume is not None and volume.is_linked)
+    return not (volume is not None and volume.is_linked)
 
 
 def _opaque_nodes(material) -> list:
     return [node for node in atmos_nodes(material) if node.get(TAG) in OPAQUE_TAGS]
 
 
-def _opaque_source(tree):
-    """The socket the user's Cycles output takes its surface from (None when unlinked)."""
-    output = cycles_output(tree)
-    surface = None if output is None else output.inputs["Surface"]
-    return surface.links[0].from_socket if surface is not None and surface.is_linked else None
-
-
-def keep_opaque(material, present: list | None = None) -> bool:
+def keep_opaque(material, present: list | None = None, output=False, link=False, shader=None) -> bool:
     """Keep ``material`` opaque in Cycles while its surface folds away (:func:`surface_folds_away`); idempotent.
 
     Three tagged nodes beside the user's, none of the user's links or values touched: a black Diffuse BSDF (a
@@ -316,12 +351,16 @@ def keep_opaque(material, present: list | None = None) -> bool:
     shader's values still shows), and a Cycles-target Material Output carrying it with the user's Displacement and
     Thickness. Eevee ignores a Cycles-target output. They are rebuilt when the user relinks the surface and removed
     when it stops folding (the depsgraph handler calls this for edited materials). Returns True when anything
-    changed. ``present``: the material's opaque-keeping nodes when the caller knows them (none after a re-inject).
+    changed. ``present``: the material's opaque-keeping nodes when the caller knows them (none after a re-inject);
+    ``output``, ``link``, ``shader``: the output Cycles renders, the link into its Surface and that link's source
+    node, when the caller has them.
     """
     tree = material.node_tree
     present = _opaque_nodes(material) if present is None else present
-    needed = surface_folds_away(tree)
-    source = _opaque_source(tree) if needed else None
+    user_output = cycles_output(tree) if output is False else output
+    link = _surface_link(user_output) if link is False else link
+    needed = surface_folds_away(tree, user_output, link, shader)
+    source = link.from_socket if needed and link is not None else None
     if present and needed:
         adds = [node for node in present if node.get(TAG) == OPAQUE_ADD_TAG]
         current = adds[0].inputs[0].links[0].from_socket if adds and adds[0].inputs[0].is_linked else None
@@ -332,7 +371,6 @@ def keep_opaque(material, present: list | None = None) -> bool:
     _remove_nodes(material, present)
     if not needed:
         return True
-    user_output = cycles_output(tree)
     x, y = free_spot(tree.nodes)
     black = tree.nodes.new("ShaderNodeBsdfDiffuse")
     place_last(tree.nodes, x, y - 300.0)
@@ -551,7 +589,7 @@ def free_spot(nodes) -> tuple[float, float]:
 def place_last(nodes, x: float, y: float) -> None:
     """Move the last node of ``nodes`` to (x, y) without an RNA update.
 
-    Every node property write runs a node-tree update (24-32 us in a file of 5000 materials, Blender 4.5-5.3,
+    Every node property write runs a node-tree update (19-27 us in a file of 5000 materials, Blender 4.5-5.3,
     ``tools/bench_node_edits.py``); ``foreach_set`` writes the raw locations (the other nodes get back the values
     just read) and skips that update.
     """
@@ -571,7 +609,11 @@ def inject(material, surface_group, tagged=None) -> None:
     """
     tree = material.node_tree
     _remove_nodes(material, atmos_nodes(material) if tagged is None else tagged)
-    opacity_socket, opacity_value, invert = opacity(tree)
+    outputs = _output_nodes(tree)
+    active, cycles = _active_of(outputs), _cycles_of(outputs)
+    active_link = _surface_link(active)
+    shader = None if active_link is None else active_link.from_node
+    opacity_socket, opacity_value, invert = opacity(tree, active_link, shader)
     x, y = free_spot(tree.nodes)
     node = tree.nodes.new("ShaderNodeGroup")
     place_last(tree.nodes, x, y)
@@ -583,7 +625,10 @@ def inject(material, surface_group, tagged=None) -> None:
         tree.links.new(opacity_socket, target)
     elif opacity_value is not None:
         target.default_value = opacity_value
-    keep_opaque(material, present=[])
+    if cycles == active:
+        keep_opaque(material, present=[], output=cycles, link=active_link, shader=shader)
+    else:
+        keep_opaque(material, present=[], output=cycles)
 
 
 def _remove_nodes(material, tagged) -> None:
