@@ -49,7 +49,7 @@ from tools.bench import cpu_model  # noqa: E402  (one definition for the bench t
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender import in_render  # noqa: E402
+from atmos_addon.blender import facts, in_render  # noqa: E402
 from sample_scenes import valley  # noqa: E402
 
 CONFIGS = ("off", "Compositor", "In-Render")
@@ -89,7 +89,7 @@ def configure(scene, config: str, preset: str) -> None:
             api.disable(scene)
         api.enable(scene, preset=preset, render_mode="IN_RENDER")
         if not in_render.is_installed(scene):
-            raise SystemExit(f"In-Render mode did not install: {in_render.fallback_reason(scene)}")
+            raise SystemExit(f"In-Render mode did not install: {facts.plan_of(scene).notes}")
 
 
 def timed_render(scene) -> tuple[float, float]:

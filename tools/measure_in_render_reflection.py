@@ -66,7 +66,7 @@ from mathutils import Vector  # noqa: E402
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender import compositor, in_render, sync  # noqa: E402
+from atmos_addon.blender import compositor, facts, in_render, sync  # noqa: E402
 from atmos_addon.physics.dome_mesh import dome_radius  # noqa: E402
 from sample_scenes import valley  # noqa: E402
 
@@ -258,7 +258,7 @@ def measure(args: argparse.Namespace, camera_name: str) -> dict:
     reference = render(scene)
     scene.atmos.render_mode = "IN_RENDER"
     if not in_render.is_installed(scene):
-        raise SystemExit(f"In-Render mode did not install: {in_render.fallback_reason(scene)}")
+        raise SystemExit(f"In-Render mode did not install: {facts.plan_of(scene).notes}")
     hazed = render(scene)
     finite = {"reference": int(np.sum(~np.isfinite(reference))), "In-Render": int(np.sum(~np.isfinite(hazed)))}
     pixel_error = np.max(np.abs(hazed / reference - 1.0), axis=-1)

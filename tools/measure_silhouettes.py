@@ -248,7 +248,9 @@ def measure(case: str, engine: str, width: int, height: int, factor: int, sample
     if with_in_render and engine == "CYCLES":
         scene.atmos.render_mode = "IN_RENDER"  # the update callback switches the effect to In-Render mode
         if not in_render.is_installed(scene):
-            reason = in_render.fallback_reason(scene) if hasattr(in_render, "fallback_reason") else None
+            from atmos_addon.blender import facts
+
+            reason = next(iter(facts.plan_of(scene).notes), None)
             if reason is None:
                 raise RuntimeError("In-Render mode did not install")
             return rows, reason

@@ -35,7 +35,7 @@ area is saved as ``<tag>_<phase>.png``, the whole screen once as ``<tag>_window.
 The view layer's AOVs as Atmos declared them go to the JSON too: Eevee in Blender 5.2 writes 0 into a view
 layer's first AOV when it is a Value AOV, which this script found (Per Pixel mode then rendered as if the effect
 were off, in the viewport and in F12 renders); Atmos now declares a colour AOV first
-(``atmos_addon.blender.compositor.PER_PIXEL_AOVS``).
+(``atmos_addon.plan.AOVS``).
 """
 
 from __future__ import annotations
@@ -348,10 +348,10 @@ def run(args: argparse.Namespace, result: dict):
             stage = phase
             if phase == "on":
                 import atmos_addon.api as atmos
-                from atmos_addon.blender import in_render
+                from atmos_addon.blender import facts
 
                 report = atmos.enable(scene, quality="FAST", render_mode=args.mode, sky_enabled=False)
-                result["effective_mode"] = in_render.effective_mode(scene)
+                result["effective_mode"] = facts.plan_of(scene).mode
                 result["view_layer_aovs"] = [aov.name for aov in scene.view_layers[0].aovs]
                 result["enable_messages"] = list(getattr(report, "messages", []))
             elif phase == "sky":

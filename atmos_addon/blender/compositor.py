@@ -33,7 +33,8 @@ import warnings
 import bpy
 
 from .. import import_sibling
-from .materials import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_TRANSMITTANCE, AOV_VIEW, TAG
+from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_TRANSMITTANCE, AOV_VIEW, AOVS
+from .materials import TAG
 
 GROUP_NAME = "Atmos Aerial Composite"
 GROUP_VERSION = 1
@@ -41,14 +42,12 @@ VERSION_KEY = "atmos_version"
 STATE_KEY = "atmos_compositor"
 COMPOSITE_NODE = "Atmos Aerial Composite"
 CREATED_TREE_NAME = "Atmos Compositor"
-AOVS = ((AOV_TRANSMITTANCE, "COLOR"), (AOV_INSCATTERING, "COLOR"), (AOV_COVERAGE, "VALUE"))
-#: The Per Pixel mode's AOVs (``node_groups.per_pixel``): the atmosphere is evaluated in the compositor. A colour
-#: AOV comes first: Eevee in Blender 5.2 writes 0 into the first AOV of a view layer when that one is a Value AOV
-#: (measured in a GUI Blender 5.2.2, viewport and final render, ``tools/verify_viewport.py``, and with the bpy 5.2.3
-#: wheel, where ``test_per_pixel_mode_composites_the_physics[EEVEE]`` fails with that order; not in 4.5, 5.0 or 5.3.0).
-PER_PIXEL_AOVS = ((AOV_VIEW, "COLOR"), (AOV_COVERAGE, "VALUE"), (AOV_DISTANCE, "VALUE"))
-#: How the compositor applies the effect: "COMPOSITOR" (per-sample AOVs combined) or "PER_PIXEL" (evaluated here).
-EVALUATIONS = ("COMPOSITOR", "PER_PIXEL")
+#: How the compositor applies the effect: "COMPOSITOR" (per-sample AOVs combined) or "PER_PIXEL" (evaluated here);
+#: the view layer AOVs of each are the plan's (:data:`atmos_addon.plan.AOVS`). Per Pixel's colour AOV comes first:
+#: Eevee in Blender 5.2 writes 0 into the first AOV of a view layer when that one is a Value AOV (measured in a GUI
+#: Blender 5.2.2, viewport and final render, ``tools/verify_viewport.py``, and with the bpy 5.2.3 wheel, where
+#: ``test_per_pixel_mode_composites_the_physics[EEVEE]`` fails with that order; not in 4.5, 5.0 or 5.3.0).
+EVALUATIONS = AOV_MODES
 
 #: Blender 5.0 replaced scene.node_tree / use_nodes by scene.compositing_node_group.
 GROUP_API = "compositing_node_group" in bpy.types.Scene.bl_rna.properties
@@ -153,7 +152,7 @@ def ensure_composite_group():
 # -- view layer AOVs ---------------------------------------------------------------------------
 
 
-def declare_aovs(scene, state: dict, aovs=AOVS) -> None:
+def declare_aovs(scene, state: dict, aovs=AOVS["COMPOSITOR"]) -> None:
     """Add the Atmos ``aovs`` to every view layer that lacks them; remember which we added."""
     added = list(state.get("added_aovs", []))
     for layer in scene.view_layers:
@@ -168,7 +167,7 @@ def declare_aovs(scene, state: dict, aovs=AOVS) -> None:
 
 
 def value_aov_leads(scene, state: dict) -> bool:
-    """True when a view layer's first AOV is a Value AOV that Atmos added (a file saved before PER_PIXEL_AOVS put
+    """True when a view layer's first AOV is a Value AOV that Atmos added (a file saved before Per Pixel's AOVs put
     the colour AOV first): Blender 5.2's Eevee would write 0 into it."""
     added = set(state.get("added_aovs", []))
     return any(len(layer.aovs) and layer.aovs[0].type == "VALUE" and f"{layer.name}\t{layer.aovs[0].name}" in added
@@ -364,7 +363,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
     state.setdefault("viewer_images", _viewer_images())
     state["evaluation"] = evaluation
     per_pixel = evaluation == "PER_PIXEL"
-    declare_aovs(scene, state, PER_PIXEL_AOVS if per_pixel else AOVS)
+    declare_aovs(scene, state, AOVS[evaluation])
     group = ensure_per_pixel_group(features) if per_pixel else ensure_composite_group()
     tree = _scene_tree(scene, state)
     state.setdefault("created_animation_data", tree.animation_data is None)

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import compositor, in_render, limits, materials, precise_tables, quality_choice, sun_lamp, sync, world
+from . import compositor, facts, in_render, materials, precise_tables, quality_choice, sun_lamp, sync, world
 
 _applying: set[str] = set()
 
@@ -64,22 +64,13 @@ def _status(scene, report: Report) -> None:
         item.reason = reason
 
 
-def evaluations_in_use(scene) -> tuple[str, ...]:
-    """The compositor evaluations ("COMPOSITOR", "PER_PIXEL") of ``scene`` and the file's other enabled scenes:
-    the shared surface group holds the AOV outputs of each (:func:`.materials.ensure_surface_group`)."""
-    modes = {in_render.effective_mode(scene)}
-    for other in bpy.data.scenes:
-        if other != scene and getattr(other, "atmos", None) is not None and other.atmos.enabled:
-            modes.add(in_render.effective_mode(other))
-    return tuple(sorted(modes - {"IN_RENDER"})) or ("COMPOSITOR",)
-
-
 def _apply_materials(scene, *, only_new: bool) -> Report:
-    if in_render.effective_mode(scene) == "IN_RENDER":
+    plan = facts.plan_of(scene)
+    if plan.mode == "IN_RENDER":
         result = in_render.inject_scene(scene, sync.ensure_group(scene), only_new=only_new)
     else:
         result = materials.inject_scene(scene, sync.ensure_group(scene), only_new=only_new,
-                                        evaluations=evaluations_in_use(scene))
+                                        evaluations=plan.surface_modes)
     report = Report(
         managed=result.managed,
         skipped=result.skipped,
@@ -99,13 +90,13 @@ def _apply_materials(scene, *, only_new: bool) -> Report:
 def mode_mismatch(scene) -> bool:
     """True when the effect is on in one mode (Compositor or Per Pixel / In-Render) and the scene now asks for the
     other (Compositor and Per Pixel share the materials' nodes: :func:`.compositor.install` swaps those two)."""
-    return scene.atmos.enabled and in_render.is_installed(scene) != (in_render.effective_mode(scene) == "IN_RENDER")
+    return scene.atmos.enabled and in_render.is_installed(scene) != (facts.plan_of(scene).mode == "IN_RENDER")
 
 
 def enable_effect(scene) -> Report:
     """Apply aerial perspective to every object of ``scene`` (idempotent).
 
-    The mode is :func:`.in_render.effective_mode`'s: Compositor (AOVs in the materials, the combining node in
+    The mode is the plan's (:func:`.facts.plan_of`): Compositor (AOVs in the materials, the combining node in
     the compositor) or In-Render (Cycles: dome volumes, emission in the materials, world compensation). When
     the effect is on in the other mode (the setting or the render engine changed), that mode is removed first.
     """
@@ -114,12 +105,11 @@ def enable_effect(scene) -> Report:
     _set_enabled(scene, True)
     if precise_tables.uses_precise(scene):
         scene.view_layers[0].update()   # the tables read the camera's matrix: objects moved by a script since
-    in_render_mode = in_render.effective_mode(scene) == "IN_RENDER"
     quality_choice.resolve(scene)
+    plan = facts.plan_of(scene)
     report = _apply_materials(scene, only_new=True)
-    if not in_render_mode:
-        per_pixel = in_render.effective_mode(scene) == "PER_PIXEL"
-        report.messages.extend(compositor.install(scene, evaluation="PER_PIXEL" if per_pixel else "COMPOSITOR",
+    if plan.compositor is not None:
+        report.messages.extend(compositor.install(scene, evaluation=plan.compositor,
                                                   features=sync.features_from_settings(scene.atmos)))
     if scene.atmos.drive_sun_lamp:
         _, lamp_message = sun_lamp.ensure_sun_lamp(scene)
@@ -129,10 +119,8 @@ def enable_effect(scene) -> Report:
         sky_features = sync.sky_features_from_settings(scene.atmos)
         report.messages.append(world.install_sky(scene, sync.ensure_sky_group(scene), sky_features))
         world.sync_sky_lighting(scene, sync.atmosphere_of(scene), sky_features)
-    for warning in (in_render.fallback_reason(scene), limits.clip_range_warning(scene)):
-        if warning:
-            report.messages.append(warning)
-    if in_render_mode:
+    report.messages.extend(note for note in plan.notes if note not in scene.atmos.status_quality)
+    if plan.mode == "IN_RENDER":
         report.messages.extend(in_render.install(scene, sync.features_from_settings(scene.atmos),
                                                  sync.atmosphere_of(scene), sync.metres_per_unit(scene)))
     if not sun_lamp.is_bake_current(scene):   # usually baked by sync_scene already (sun_lamp.follow)

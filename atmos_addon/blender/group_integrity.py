@@ -104,8 +104,11 @@ def fingerprint(tree) -> str:
 
 
 def _build_key(tree) -> str:
-    """What the stamp belongs to: the group's own version/feature stamps and the Blender version."""
-    return f"{tree.get('atmos_version')}|{tree.get('atmos_features')}|{bpy.app.version_string}"
+    """What the stamp belongs to: the group's own version, feature and mode stamps and the Blender version (a group
+    rebuilt for another feature set, or the material group rebuilt for the modes of another scene, is stamped
+    again, not reported as edited)."""
+    return (f"{tree.get('atmos_version')}|{tree.get('atmos_features')}|{tree.get('atmos_evaluations')}|"
+            f"{bpy.app.version_string}")
 
 
 def _managed_trees():

@@ -32,7 +32,8 @@ import bpy
 
 from .. import import_sibling
 from ..physics.dome_mesh import dome_mesh
-from . import limits, materials
+from ..plan import EEVEE_CLIP_RATIO_LIMIT
+from . import materials
 from .materials import TAG
 
 STATE_KEY = "atmos_in_render"
@@ -50,42 +51,10 @@ CLIP_MARGIN = 1.05
 #: Russian-roulette threshold are raised by this much while In-Render mode is installed (restored on removal),
 #: so the domes neither cut paths short nor add noise.
 DOME_CROSSINGS = 4
-MODES = ("COMPOSITOR", "PER_PIXEL", "IN_RENDER")
 
 
 def _groups():
     return import_sibling("node_groups").in_render
-
-
-def uses_osl(scene) -> bool:
-    """True when the scene renders with Cycles and Open Shading Language is on: Cycles then writes no shader AOVs
-    (measured: they come out empty), so the Compositor and Per Pixel modes would render no haze at all."""
-    return scene.render.engine == "CYCLES" and bool(getattr(getattr(scene, "cycles", None), "shading_system", False))
-
-
-def fallback_reason(scene) -> str | None:
-    """Why the scene renders in another mode than its setting asks for, or None when it renders in that mode.
-
-    - In-Render asked for, engine not Cycles: Compositor mode (In-Render is Cycles shading).
-    - Compositor or Per Pixel asked for, Cycles with Open Shading Language: In-Render mode, the one mechanism that
-      does not depend on shader AOVs (it applies the Fast level on every ray segment).
-    """
-    wanted = getattr(scene.atmos, "render_mode", "COMPOSITOR")
-    if wanted == "IN_RENDER" and scene.render.engine != "CYCLES":
-        return "In-Render mode needs Cycles: this engine renders with the Compositor mode"
-    if wanted != "IN_RENDER" and uses_osl(scene):
-        return ("Open Shading Language is on: Cycles writes no AOVs with it, so the haze is applied In-Render "
-                "(turn OSL off for the Compositor or Per Pixel mode)")
-    return None
-
-
-def effective_mode(scene) -> str:
-    """The mode the scene renders with: its setting, except where :func:`fallback_reason` says otherwise
-    ("IN_RENDER" needs Cycles; Cycles with Open Shading Language renders "IN_RENDER")."""
-    wanted = getattr(scene.atmos, "render_mode", "COMPOSITOR")
-    if fallback_reason(scene) is None:
-        return wanted
-    return "COMPOSITOR" if wanted == "IN_RENDER" else "IN_RENDER"
 
 
 def is_installed(scene) -> bool:
@@ -281,11 +250,13 @@ def _restore_transparent_bounces(scene, state) -> None:
 
 def _raise_clip_end(scene, needed: float) -> None:
     """Raise the camera's clip end to ``needed``, but never past Eevee's flat-sky limit of the clip range
-    (:mod:`.limits`: the file may be rendered with Eevee later); :func:`install` warns when it stops short."""
+    (:data:`atmos_addon.plan.EEVEE_CLIP_RATIO_LIMIT`: the file may be rendered with Eevee later); :func:`install`
+    warns when it stops short."""
     camera = scene.camera
     if camera is None or camera.type != "CAMERA":
         return
-    needed = min(needed, limits.largest_clip_end(camera))
+    # the largest clip end within the limit, less one part in 10^6 so the float32 it is stored as stays within
+    needed = min(needed, float(camera.data.clip_start) * EEVEE_CLIP_RATIO_LIMIT * (1.0 - 1e-6))
     if needed <= 0.0 or camera.data.clip_end >= needed:
         return
     state = scene[STATE_KEY]

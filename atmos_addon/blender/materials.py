@@ -36,14 +36,11 @@ from dataclasses import dataclass, field
 
 import bpy
 
+from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_TRANSMITTANCE, AOV_VIEW
+
 TAG = "atmos_tag"
 PREFIX = "Atmos "
-AOV_TRANSMITTANCE = "atmos_transmittance"
-AOV_INSCATTERING = "atmos_inscattering"
-AOV_COVERAGE = "atmos_coverage"
-#: The Per Pixel mode's AOVs (:mod:`node_groups.per_pixel`): alpha s / 1000 (s in m) and alpha v.
-AOV_DISTANCE = "atmos_distance"
-AOV_VIEW = "atmos_view"
+#: The AOV names (:data:`atmos_addon.plan.AOVS`); the Per Pixel mode's distance AOV holds alpha s / 1000 (s in m).
 DISTANCE_AOV_UNIT_M = 1000.0
 #: The scene custom property holding metres per scene unit (``node_groups.parameters.METRES_PER_UNIT``).
 METRES_PER_UNIT = "atmos_metres_per_unit"

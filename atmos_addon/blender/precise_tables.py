@@ -225,11 +225,11 @@ def describe() -> str:
 
 
 def uses_precise(scene) -> bool:
-    """True when ``scene`` has the effect on with its aerial group built at the Precise level."""
-    from . import sync
+    """True when ``scene`` has the effect on and its plan bakes the Precise level's tables."""
+    from . import facts
 
     settings = getattr(scene, "atmos", None)
-    return bool(settings is not None and settings.enabled and sync.features_from_settings(settings).level == "precise")
+    return bool(settings is not None and settings.enabled and facts.plan_of(scene).tables)
 
 
 def moves(scene) -> bool:

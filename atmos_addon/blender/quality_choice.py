@@ -17,7 +17,8 @@ import numpy as np
 from mathutils import Vector
 
 from ..physics.quality import LEVEL_DESCRIPTIONS, Level, SceneSummary, choose_level, nearest_cases
-from . import sun_lamp, sync
+from ..plan import NOTE_IN_RENDER_FAST
+from . import facts, sun_lamp, sync
 
 #: Object types with geometry the camera sees (their bounding boxes count for the summary).
 GEOMETRY_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "META", "FONT", "VOLUME", "POINTCLOUD", "CURVES"})
@@ -95,14 +96,10 @@ def resolve(scene) -> str:
     In-Render mode builds its ray-segment graph with Fast whatever the level (a reflected ray does not start
     at the camera, whose altitude the Balanced graph takes from the camera ray); the status line says so.
     """
-    from . import in_render
-
     settings = scene.atmos
     level = _resolve(scene, settings)
-    mode = in_render.effective_mode(scene)
-    if level != "fast" and mode == "IN_RENDER":
-        sync._set_if_changed(settings, "status_quality", f"{settings.status_quality}. In-Render mode applies Fast "
-                             "on every ray segment")
+    if NOTE_IN_RENDER_FAST in facts.plan_of(scene).notes:
+        sync._set_if_changed(settings, "status_quality", f"{settings.status_quality}. {NOTE_IN_RENDER_FAST}")
     return level
 
 
@@ -112,9 +109,7 @@ def _resolve(scene, settings) -> str:
         sync._set_if_changed(settings, "status_quality", line)
         return level_of(settings)
     summary = summarize(scene)
-    from . import in_render
-
-    per_pixel = in_render.effective_mode(scene) == "PER_PIXEL"   # Balanced's Per Pixel variant is more accurate
+    per_pixel = facts.plan_of(scene).mode == "PER_PIXEL"   # Balanced's Per Pixel variant is more accurate
     level, error = choose_level(summary, tolerance=settings.auto_tolerance / 100.0, per_pixel=per_pixel)
     situations = ", ".join(name.replace("_", " ") for name in nearest_cases(summary))
     verdict = "within" if error <= settings.auto_tolerance / 100.0 else "best available, over"

@@ -16,7 +16,7 @@ from bpy.app.handlers import persistent
 from mathutils import Vector
 
 from .. import import_sibling
-from . import group_integrity, materials, world
+from . import facts, group_integrity, materials, world
 from ..physics import Atmosphere, sun_irradiance_ground
 from ..physics.balanced import sun_optical_depths_ground
 from ..physics.sun import LUMINANCE_WEIGHTS
@@ -41,21 +41,11 @@ def node_groups():
 
 
 def features_from_settings(settings):
-    """The node-group feature set the settings need (Mie and absorption terms only when non-zero) and the quality
-    level (:func:`.quality_choice.level_of`; In-Render mode evaluates ray segments with the Fast level, Per Pixel
-    mode evaluates the pixels at any level)."""
-    from . import in_render, quality_choice
-
-    aerial = node_groups().aerial_perspective
-    mode = in_render.effective_mode(settings.id_data)
-    level = quality_choice.level_of(settings)
-    if mode == "IN_RENDER":
-        level = "fast"
-    return aerial.AerialFeatures(
-        mie=any(v > 0.0 for v in settings.mie_scattering_per_km),
-        absorption=any(v > 0.0 for v in settings.mie_absorption_per_km),
-        level=level,
-    )
+    """The aerial node groups' feature set for the settings' scene: its plan's terms and level
+    (:func:`.facts.plan_of`)."""
+    plan = facts.plan_of(settings.id_data)
+    return node_groups().aerial_perspective.AerialFeatures(mie=plan.mie, absorption=plan.absorption,
+                                                          level=plan.level)
 
 
 def sun_object(scene):
@@ -105,18 +95,17 @@ def ensure_group(scene):
     mode the compositor group evaluates the atmosphere and the materials need no shader group: the aerial group is
     returned only when another enabled scene's Compositor mode uses it (None otherwise), so none is built for nothing
     (at Balanced it is a thousand nodes)."""
-    from . import effect, in_render
-
     aerial = node_groups().aerial_perspective
-    features = features_from_settings(scene.atmos)
-    mode = in_render.effective_mode(scene)
+    plan = facts.plan_of(scene)
+    features = aerial.AerialFeatures(mie=plan.mie, absorption=plan.absorption, level=plan.level)
+    mode = plan.mode
     if mode == "IN_RENDER":
         group = node_groups().in_render.ensure_surface_group(features)
     elif mode == "COMPOSITOR":
         group = aerial.ensure_aerial_perspective_group(features)
     else:
         group = bpy.data.node_groups.get(aerial.GROUP_NAME)
-        if group is None and "COMPOSITOR" in effect.evaluations_in_use(scene):
+        if group is None and "COMPOSITOR" in plan.surface_modes:
             group = aerial.ensure_aerial_perspective_group(features)
     built = aerial.describe_features(features)
     if mode == "PER_PIXEL":
@@ -252,11 +241,11 @@ def _note_camera(scene) -> bool:
 
 
 def sky_features_from_settings(settings):
-    """The sky group's feature set: the aerial terms, the ground mode, and the Precise table at the Precise level
-    (every other level shows the virtual-dome sky)."""
-    aerial = features_from_settings(settings)
-    return node_groups().sky.SkyFeatures(mie=aerial.mie, absorption=aerial.absorption, ground=settings.sky_ground,
-                                         level="precise" if aerial.level == "precise" else "fast")
+    """The sky group's feature set: the plan's terms, ground and sky level (the Precise table's sky at the Precise
+    level, the virtual dome otherwise)."""
+    plan = facts.plan_of(settings.id_data)
+    return node_groups().sky.SkyFeatures(mie=plan.mie, absorption=plan.absorption, ground=plan.sky_ground,
+                                         level=plan.sky_level)
 
 
 def ensure_sky_group(scene):
@@ -375,7 +364,7 @@ _MSGBUS_OWNER = object()
 
 def follow_render_settings(*_args) -> None:
     """Switch every enabled scene whose render settings now call for another mode (the engine changed, Cycles'
-    Open Shading Language toggled: :func:`.in_render.fallback_reason`). The message bus calls this when the user
+    Open Shading Language toggled: :func:`atmos_addon.plan.mode_for`). The message bus calls this when the user
     changes those settings in the interface; Cycles' settings do not tag the depsgraph, so the depsgraph handler
     would see the change only at the next edit."""
     from . import effect

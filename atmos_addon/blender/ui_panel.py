@@ -14,7 +14,8 @@ from __future__ import annotations
 import bpy
 
 from .. import presets
-from . import group_integrity, limits, preset_ops
+from ..plan import NOTE_IN_RENDER_FAST
+from . import facts, group_integrity, preset_ops
 
 
 def _settings(context):
@@ -113,22 +114,8 @@ def _split(layout):
 
 
 def viewport_note(scene) -> str:
-    """What the 3D viewport's Rendered shading shows of the aerial perspective, in one line.
-
-    Measured in GUI Blender 4.3.2 and 5.2.2 (``tools/verify_viewport.py``, docs/viewport.md): the In-Render mode is
-    shading and shows in the viewport exactly; the Compositor and Per Pixel modes need the viewport compositor,
-    which gets Eevee's AOVs but no passes at all from Cycles. Other engines (Workbench) run no material nodes.
-    """
-    from . import in_render
-
-    engine = scene.render.engine
-    if engine == "CYCLES" and in_render.effective_mode(scene) == "IN_RENDER":
-        return "Viewport: the haze shows in Rendered shading"
-    if engine not in limits.EEVEE_ENGINES and engine != "CYCLES":
-        return "This engine renders no Atmos haze: use Eevee or Cycles"
-    if engine == "CYCLES":
-        return "Viewport: no haze in Cycles in this mode (no passes); In-Render mode shows it"
-    return "Viewport: set Viewport Shading > Compositor to Always to see the haze"
+    """What the 3D viewport's Rendered shading shows of the aerial perspective, in one line (the plan's)."""
+    return facts.plan_of(scene).viewport
 
 
 class ATMOS_PT_atmosphere(_WorldPanel, bpy.types.Panel):
@@ -145,18 +132,14 @@ class ATMOS_PT_atmosphere(_WorldPanel, bpy.types.Panel):
         draw_preset_row(layout, context)
         settings = _settings(context)
         layout.prop(settings, "render_mode", expand=True)
-        from . import in_render
-
-        reason = in_render.fallback_reason(context.scene)
-        if reason:
-            layout.label(text=reason, icon="INFO")
-        if limits.clip_range_warning(context.scene):
-            needed = limits.largest_clip_start_needed(context.scene.camera)
-            layout.label(text=f"Eevee shows a flat sky: raise the camera's Clip Start to {needed:.3g}", icon="ERROR")
+        plan = facts.plan_of(context.scene)
+        for note in plan.notes:
+            if note != NOTE_IN_RENDER_FAST:   # that one is part of the quality status line
+                layout.label(text=note, icon="ERROR" if note.startswith("Camera Clip End") else "INFO")
         if not settings.enabled:
             layout.label(text="Off: tick the box to add the atmosphere to the scene", icon="INFO")
         else:
-            layout.label(text=viewport_note(context.scene), icon="VIEW3D")
+            layout.label(text=plan.viewport, icon="VIEW3D")
 
 
 class ATMOS_PT_atmosphere_air(_SubPanel, bpy.types.Panel):
@@ -247,9 +230,7 @@ class ATMOS_PT_atmosphere_sky(_SubPanel, bpy.types.Panel):
         albedo.active = settings.sky_ground == "ALBEDO"
         albedo.prop(settings, "ground_albedo")
         if settings.enabled and settings.sky_enabled:
-            from . import sync
-
-            precise = sync.sky_features_from_settings(settings).level == "precise"
+            precise = facts.plan_of(context.scene).sky_level == "precise"
             column.label(text="Sky from the Precise table (this frame's bake)" if precise
                          else "Sky from the virtual dome (Precise quality draws it from its table)")
 

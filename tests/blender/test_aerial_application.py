@@ -18,6 +18,7 @@ import pytest
 from mathutils import Vector
 
 import atmos_addon
+from atmos_addon import plan
 from atmos_addon.blender import compositor, effect, materials, sync
 from atmos_addon.physics import sun_irradiance_ground
 from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, set_use_nodes, \
@@ -428,7 +429,7 @@ def test_per_pixel_names_agree_between_the_materials_and_the_compositor_group() 
     assert materials.DISTANCE_AOV_UNIT_M == per_pixel.DISTANCE_AOV_UNIT_M
     assert materials.METRES_PER_UNIT == parameters.METRES_PER_UNIT
     assert sorted(aov for _, aov, _ in per_pixel.IMAGE_INPUTS[1:]) == sorted(name for name, _ in
-                                                                           compositor.PER_PIXEL_AOVS)
+                                                                           plan.AOVS["PER_PIXEL"])
 
 
 def test_per_pixel_declares_a_colour_aov_first_and_reorders_a_file_that_did_not() -> None:

@@ -24,10 +24,10 @@ import numpy as np
 import pytest
 
 import atmos_addon
-from atmos_addon import cli, presets
-from atmos_addon.blender import in_render, limits, materials, sync
+from atmos_addon import cli, plan, presets
+from atmos_addon.blender import facts, in_render, materials, sync
 from atmos_addon.physics import sun_irradiance_ground
-from atmos_addon.physics.aerial_perspective import extinction, inscattering
+from atmos_addon.physics.aerial_perspective import inscattering
 from atmos_addon.physics.sky import dome_distance
 from exr_file import composite_rgb
 import render_utils as ru
@@ -410,7 +410,7 @@ def test_osl_renders_the_haze_in_render_and_says_so(tmp_path):
     bpy.ops.wm.open_mainfile(filepath=str(source))
     scene = bpy.context.scene
     atmos_addon.api.enable(scene, preset="sunset", sun_elevation_deg=5.0)
-    assert in_render.effective_mode(scene) == "IN_RENDER" and in_render.is_installed(scene)
+    assert facts.plan_of(scene).mode == "IN_RENDER" and in_render.is_installed(scene)
     directions, metres = distances_to(scene.camera, 96, 32, 3000.0, 0.0)
     row, column = 16, 48
     transmittance, haze = ru.fast_segment(scene, directions[row, column], float(metres[row, column]))
@@ -430,10 +430,10 @@ def test_switching_osl_switches_the_mode_and_back():
     scene.cycles.shading_system = True
     sync.follow_render_settings()
     assert in_render.is_installed(scene)
-    assert "Open Shading Language" in in_render.fallback_reason(scene)
+    assert plan.NOTE_OSL in facts.plan_of(scene).notes
     scene.cycles.shading_system = False
     sync.follow_render_settings()
-    assert not in_render.is_installed(scene) and in_render.fallback_reason(scene) is None
+    assert not in_render.is_installed(scene) and facts.plan_of(scene).notes == ()
     assert any(n.get(materials.TAG) == 1 for n in bpy.data.materials["emission 0.5"].node_tree.nodes)
 
 
@@ -455,10 +455,10 @@ def test_a_clip_range_that_flattens_eevees_sky_is_reported(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert sum("raise Clip Start" in line for line in proc.stderr.splitlines()) == 1
     scene.camera.data.clip_start = 0.5
-    assert limits.clip_range_warning(scene) is None
+    assert facts.plan_of(scene).notes == ()
     scene.camera.data.clip_start = 0.1
     scene.render.engine = "CYCLES"
-    assert limits.clip_range_warning(scene) is None
+    assert facts.plan_of(scene).notes == ()
 
 
 def test_atmos_never_sets_a_clip_range_eevee_cannot_render():
@@ -470,7 +470,7 @@ def test_atmos_never_sets_a_clip_range_eevee_cannot_render():
     scene.atmos.render_mode = "IN_RENDER"
     report = atmos_addon.api.enable(scene, preset="clear")
     assert in_render.is_installed(scene)
-    assert limits.clip_ratio(scene.camera) <= limits.EEVEE_CLIP_RATIO_LIMIT * (1.0 + 1e-9)
+    assert scene.camera.data.clip_end / scene.camera.data.clip_start <= plan.EEVEE_CLIP_RATIO_LIMIT
     assert any("raise Clip Start" in line for line in report.messages), report.messages
     atmos_addon.api.disable(scene)
     assert scene.camera.data.clip_end == pytest.approx(1000.0)

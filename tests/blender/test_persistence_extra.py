@@ -161,6 +161,20 @@ def test_a_feature_rebuild_is_not_an_edit_and_the_panel_draw_is_cached() -> None
     assert (time.perf_counter() - start) / 100 < 1e-3  # a cached answer: no fingerprint per draw
 
 
+def test_a_second_scene_in_another_mode_is_not_an_edit() -> None:
+    """The shared material group rebuilt with the outputs of a second scene's Per Pixel mode is stamped again, not
+    reported as edited (it was, until the migration test opened a two-scene file in the Blender that saved it)."""
+    first = _enabled_scene()
+    second = bpy.data.scenes.new("Second")
+    second.camera = first.camera
+    second.collection.objects.link(bpy.data.objects["Obj0"])
+    second.atmos.render_mode = "PER_PIXEL"
+    effect.enable_effect(second)
+    bpy.context.view_layer.update()
+    assert bpy.data.node_groups[group_integrity.SURFACE]["atmos_evaluations"] == "COMPOSITOR,PER_PIXEL"
+    assert group_integrity.edited_groups(force=True) == []
+
+
 def test_edit_survives_save_and_reload_and_is_still_reported(tmp_path: Path) -> None:
     _enabled_scene()
     node, socket = _a_math_input(bpy.data.node_groups[group_integrity.AERIAL])

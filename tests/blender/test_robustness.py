@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 import atmos_addon
+from atmos_addon import plan
 from atmos_addon.blender import compositor, effect, materials, sync
 
 import render_utils
@@ -211,7 +212,7 @@ def test_save_and_reopen_keeps_the_effect_and_load_post_resyncs(tmp_path: Path) 
         assert node.node_tree.name == materials.SURFACE_GROUP
         aovs = {n.aov_name for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"}
         assert aovs == {materials.AOV_TRANSMITTANCE, materials.AOV_INSCATTERING, materials.AOV_COVERAGE}
-    assert [a.name for a in scene.view_layers[0].aovs] == [n for n, _ in compositor.AOVS]
+    assert [a.name for a in scene.view_layers[0].aovs] == [n for n, _ in plan.AOVS["COMPOSITOR"]]
     assert compositor_state(scene) == composited
     assert compositor.STATE_KEY in scene
     reloaded = parameters(scene)
@@ -470,7 +471,7 @@ def test_every_view_layer_gets_the_atmosphere_and_disable_restores_them() -> Non
     effect.enable_effect(scene)
     for layer in scene.view_layers:
         names = {aov.name for aov in layer.aovs}
-        assert {name for name, _ in compositor.AOVS} <= names, layer.name
+        assert {name for name, _ in plan.AOVS["COMPOSITOR"]} <= names, layer.name
     render_layers = [n for n in tree.nodes if n.bl_idname == "CompositorNodeRLayers"]
     assert len(render_layers) == 2
     for node in render_layers:

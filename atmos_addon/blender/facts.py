@@ -1,0 +1,45 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""A scene's :class:`~atmos_addon.plan.SceneFacts`, read off its settings, engine and camera, and its plan.
+
+Everything Atmos builds for a scene follows from :func:`plan_of`; :mod:`atmos_addon.plan` holds the rules.
+"""
+
+from __future__ import annotations
+
+from ..plan import Plan, SceneFacts, plan_for
+
+
+def _own_facts(scene, other_modes: tuple[str, ...] = ()) -> SceneFacts:
+    settings = scene.atmos
+    camera = scene.camera
+    clip_ratio = clip_end_m = None
+    if camera is not None and camera.type == "CAMERA" and camera.data.clip_start > 0.0:
+        clip_ratio = float(camera.data.clip_end) / float(camera.data.clip_start)
+        clip_end_m = float(camera.data.clip_end) * float(scene.unit_settings.scale_length)
+    return SceneFacts(
+        render_mode=settings.render_mode, quality=settings.quality, auto_level=settings.auto_level,
+        engine=scene.render.engine,
+        osl=bool(getattr(getattr(scene, "cycles", None), "shading_system", False)),
+        mie=any(v > 0.0 for v in settings.mie_scattering_per_km),
+        absorption=any(v > 0.0 for v in settings.mie_absorption_per_km),
+        sky=bool(settings.sky_enabled), sky_ground=settings.sky_ground, sun_lamp=bool(settings.drive_sun_lamp),
+        multiple_scattering=bool(settings.multiple_scattering), other_modes=other_modes, clip_ratio=clip_ratio,
+        clip_end_m=clip_end_m)
+
+
+def other_modes(scene) -> tuple[str, ...]:
+    """The modes the file's other scenes with Atmos on render with (the shared material group serves them all)."""
+    import bpy
+
+    return tuple(sorted({plan_for(_own_facts(other)).mode for other in bpy.data.scenes
+                         if other != scene and getattr(other, "atmos", None) is not None and other.atmos.enabled}))
+
+
+def facts_of(scene) -> SceneFacts:
+    """The :class:`SceneFacts` of ``scene`` (its settings, engine, camera and the file's other enabled scenes)."""
+    return _own_facts(scene, other_modes(scene))
+
+
+def plan_of(scene) -> Plan:
+    """What Atmos builds for ``scene`` (:func:`atmos_addon.plan.plan_for`)."""
+    return plan_for(facts_of(scene))

@@ -1,0 +1,180 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""What Atmos builds for a scene, and why: the one place that reduces 3 modes x 4 quality settings x 2 engines (x
+Open Shading Language, x the other scenes of the file) to the configuration actually built.
+
+Pure Python (no ``bpy``): :class:`SceneFacts` holds what the rules depend on, read off a scene by the Blender layer
+(``atmos_addon.blender.facts``) or written by hand in a test; :func:`plan_for` returns the :class:`Plan`. The
+orchestrator applies a plan, the appliers build what it lists, the panel and the CLI print its notes. Every
+fallback is decided here, once, with the sentence that explains it:
+
+- **Mode.** Compositor (both engines: the materials write AOVs, the compositor combines them per pixel), Per Pixel
+  (both engines: the materials write distance and direction, the compositor evaluates the level per pixel) or
+  In-Render (Cycles: haze volumes and per-segment emission). In-Render asked for in another engine renders with the
+  Compositor mode. Cycles with Open Shading Language writes no shader AOVs (measured: they come out empty), so
+  there the Compositor and Per Pixel modes render In-Render instead.
+- **Level.** Fast, Balanced or Precise; Auto's last choice for Auto (made from a summary of the scene, outside the
+  plan). In-Render evaluates every ray segment at the Fast level: a reflected ray does not start at the camera,
+  whose altitude the Balanced graph takes from the camera ray.
+- **Sky.** The Precise level's sky is its table's; every other level shows the virtual-dome sky. Cycles' rays
+  other than camera rays see the world's lighting table, or at the Precise level the camera's sky (the table
+  does not factor into the lighting table's elevation curves).
+- **Passes.** The AOVs of the mode; the one material group every managed material carries holds the outputs of
+  every AOV mode the file's enabled scenes use (Eevee compiles each AOV output of a material, used or not).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+MODES = ("COMPOSITOR", "PER_PIXEL", "IN_RENDER")
+#: The modes whose materials write AOVs that the compositor reads.
+AOV_MODES = ("COMPOSITOR", "PER_PIXEL")
+QUALITIES = ("FAST", "BALANCED", "PRECISE", "AUTO")
+LEVELS = ("fast", "balanced", "precise")
+EEVEE_ENGINES = frozenset({"BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"})
+
+#: The view-layer AOVs (name, kind). Compositor mode: the per-sample transmittance and in-scattering and the
+#: coverage. Per Pixel mode: the view direction, the coverage and the distance (km); a colour AOV first: Eevee in
+#: Blender 5.2 writes 0 into a view layer's first AOV when that one is a Value AOV.
+AOV_TRANSMITTANCE = "atmos_transmittance"
+AOV_INSCATTERING = "atmos_inscattering"
+AOV_COVERAGE = "atmos_coverage"
+AOV_DISTANCE = "atmos_distance"
+AOV_VIEW = "atmos_view"
+AOVS = {
+    "COMPOSITOR": ((AOV_TRANSMITTANCE, "COLOR"), (AOV_INSCATTERING, "COLOR"), (AOV_COVERAGE, "VALUE")),
+    "PER_PIXEL": ((AOV_VIEW, "COLOR"), (AOV_COVERAGE, "VALUE"), (AOV_DISTANCE, "VALUE")),
+    "IN_RENDER": (),
+}
+
+#: Eevee's world goes one flat colour above this camera clip end / clip start (float32 precision of the projection;
+#: measured with tools/measure_eevee_clip_range.py on 4.5.15, 5.2.3 and 5.3.0: every clip start from 1 mm to 10 m
+#: rendered the sky up to 1.6e7, none from 2.2e7).
+EEVEE_CLIP_RATIO_LIMIT = 1.6e7
+
+NOTE_IN_RENDER_NEEDS_CYCLES = "In-Render mode needs Cycles: this engine renders with the Compositor mode"
+NOTE_OSL = ("Open Shading Language is on: Cycles writes no AOVs with it, so the haze is applied In-Render "
+            "(turn OSL off for the Compositor or Per Pixel mode)")
+NOTE_IN_RENDER_FAST = "In-Render mode applies Fast on every ray segment"
+
+
+@dataclass(frozen=True)
+class SceneFacts:
+    """What the plan depends on, as plain values: the scene's Atmos settings, its engine and camera, and the modes
+    the file's other enabled scenes render with."""
+
+    render_mode: str = "COMPOSITOR"   #: the Mode setting (:data:`MODES`)
+    quality: str = "FAST"             #: the Quality setting (:data:`QUALITIES`)
+    auto_level: str = "fast"          #: Auto's last choice (:data:`LEVELS`)
+    engine: str = "CYCLES"            #: ``scene.render.engine``
+    osl: bool = False                 #: Cycles' Open Shading Language on
+    mie: bool = True                  #: any Mie scattering coefficient > 0
+    absorption: bool = True           #: any Mie absorption coefficient > 0
+    sky: bool = True                  #: the Sky setting
+    sky_ground: str = "ALBEDO"        #: what the sky shows below the horizon
+    sun_lamp: bool = True             #: the Drive Sun Lamp setting
+    multiple_scattering: bool = False  #: the Multiple Scattering setting (Precise level)
+    other_modes: tuple[str, ...] = ()  #: the modes the file's other enabled scenes render with
+    clip_ratio: float | None = None   #: the scene camera's clip end / clip start (None: no camera)
+    clip_end_m: float | None = None   #: the scene camera's clip end, m
+
+    def __post_init__(self) -> None:
+        if self.render_mode not in MODES:
+            raise ValueError(f"render_mode must be one of {MODES}; got {self.render_mode!r}")
+        if self.quality not in QUALITIES:
+            raise ValueError(f"quality must be one of {QUALITIES}; got {self.quality!r}")
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What is built for one scene (see the module docstring for the rules)."""
+
+    mode: str                        #: the mode rendered (:data:`MODES`)
+    level: str                       #: the aerial perspective's level (:data:`LEVELS`)
+    mie: bool                        #: the node groups hold the Mie phase term
+    absorption: bool                 #: ... and the Mie absorption term
+    sky: bool                        #: the Atmos sky is in the world
+    sky_level: str                   #: "precise" (the table's sky) or "fast" (the virtual dome)
+    sky_ground: str                  #: what the sky shows below the horizon
+    lighting: str                    #: what Cycles' rays other than camera rays see: "table" or "sky"
+    sun_lamp: bool                   #: Atmos drives the sun lamp's colour and strength
+    tables: bool                     #: the Precise level's tables are baked
+    multiple_scattering: bool        #: ... with multiple scattering
+    aovs: tuple[tuple[str, str], ...]  #: the view layer's Atmos AOVs
+    surface_modes: tuple[str, ...]   #: the AOV modes whose outputs the shared material group holds
+    notes: tuple[str, ...]           #: one sentence per fallback or warning, for the panel, the report, the CLI
+    viewport: str                    #: what the 3D viewport's Rendered shading shows of the haze
+
+    @property
+    def compositor(self) -> str | None:
+        """The compositor evaluation installed ("COMPOSITOR", "PER_PIXEL"), None in In-Render mode."""
+        return self.mode if self.mode in AOV_MODES else None
+
+    @property
+    def aerial_key(self) -> str:
+        """The aerial feature key the node groups are stamped with: "rayleigh+mie+abs", "rayleigh+balanced"..."""
+        return ("rayleigh" + ("+mie" if self.mie else "") + ("+abs" if self.absorption else "")
+                + ("" if self.level == "fast" else f"+{self.level}"))
+
+
+def mode_for(facts: SceneFacts) -> tuple[str, str | None]:
+    """The mode the scene renders with, and the sentence that says why it is not the setting's (or None)."""
+    wanted = facts.render_mode
+    if wanted == "IN_RENDER" and facts.engine != "CYCLES":
+        return "COMPOSITOR", NOTE_IN_RENDER_NEEDS_CYCLES
+    if wanted != "IN_RENDER" and facts.engine == "CYCLES" and facts.osl:
+        return "IN_RENDER", NOTE_OSL
+    return wanted, None
+
+
+def level_for(facts: SceneFacts, mode: str) -> tuple[str, str | None]:
+    """The aerial perspective's level, and the sentence that says why it is not the setting's (or None)."""
+    if facts.quality == "AUTO":
+        level = facts.auto_level if facts.auto_level in LEVELS else "fast"
+    else:
+        level = facts.quality.lower()
+    if mode == "IN_RENDER" and level != "fast":
+        return "fast", NOTE_IN_RENDER_FAST
+    return level, None
+
+
+def viewport_note(engine: str, mode: str) -> str:
+    """What the 3D viewport's Rendered shading shows of the aerial perspective, in one line.
+
+    Measured in GUI Blender 4.3.2 and 5.2.2 (``tools/verify_viewport.py``, docs/viewport.md): the In-Render mode is
+    shading and shows in the viewport exactly; the Compositor and Per Pixel modes need the viewport compositor,
+    which gets Eevee's AOVs but no passes at all from Cycles. Other engines (Workbench) run no material nodes.
+    """
+    if engine == "CYCLES" and mode == "IN_RENDER":
+        return "Viewport: the haze shows in Rendered shading"
+    if engine not in EEVEE_ENGINES and engine != "CYCLES":
+        return "This engine renders no Atmos haze: use Eevee or Cycles"
+    if engine == "CYCLES":
+        return "Viewport: no haze in Cycles in this mode (no passes); In-Render mode shows it"
+    return "Viewport: set Viewport Shading > Compositor to Always to see the haze"
+
+
+def clip_note(facts: SceneFacts) -> str | None:
+    """The warning for an Eevee camera whose clip range flattens the world (with the Clip Start that fixes it), or
+    None."""
+    if facts.engine not in EEVEE_ENGINES or facts.clip_ratio is None or facts.clip_ratio <= EEVEE_CLIP_RATIO_LIMIT:
+        return None
+    fix = "" if facts.clip_end_m is None else f" to at least {facts.clip_end_m / EEVEE_CLIP_RATIO_LIMIT:.3g} m"
+    return (f"Camera Clip End / Clip Start is {facts.clip_ratio:.2g}, over Eevee's limit of "
+            f"{EEVEE_CLIP_RATIO_LIMIT:.2g}, so Eevee renders the sky one flat colour: raise Clip Start{fix} (or lower "
+            "Clip End)")
+
+
+def plan_for(facts: SceneFacts) -> Plan:
+    """The :class:`Plan` for ``facts`` (module docstring: the rules)."""
+    mode, mode_note = mode_for(facts)
+    level, level_note = level_for(facts, mode)
+    aov_modes = {m for m in (mode, *facts.other_modes) if m in AOV_MODES}
+    precise = level == "precise"
+    notes = tuple(note for note in (mode_note, level_note, clip_note(facts)) if note)
+    return Plan(mode=mode, level=level, mie=facts.mie, absorption=facts.absorption, sky=facts.sky,
+                sky_level="precise" if precise else "fast", sky_ground=facts.sky_ground,
+                lighting="sky" if precise else "table", sun_lamp=facts.sun_lamp, tables=precise,
+                multiple_scattering=precise and facts.multiple_scattering, aovs=AOVS[mode],
+                surface_modes=tuple(sorted(aov_modes)) or ("COMPOSITOR",), notes=notes,
+                viewport=viewport_note(facts.engine, mode))
