@@ -73,9 +73,9 @@ def set_sun(scene, elevation_deg: float, azimuth_deg: float) -> None:
     ``azimuth_deg`` clockwise from +Y (north); the atmosphere, sky and lamp colour follow."""
     _check_sun(elevation_deg, azimuth_deg)
     _ensure_registered()
-    from .blender import settings_io
+    from .blender import orchestrator
 
-    with settings_io.batch(scene):
+    with orchestrator.batch(scene):
         _point_sun(scene, elevation_deg, azimuth_deg)
 
 
@@ -103,10 +103,10 @@ def set_preset(scene, name_or_path) -> _presets.Preset:
 
 def _apply_preset(scene, preset: _presets.Preset, sun_elevation_deg: float | None = None,
                   sun_azimuth_deg: float | None = None) -> None:
-    from .blender import settings_io
+    from .blender import orchestrator
 
-    with settings_io.batch(scene):
-        settings_io.apply_atmosphere(scene, preset.atmosphere)
+    with orchestrator.batch(scene):
+        orchestrator.apply_atmosphere(scene, preset.atmosphere)
         if hasattr(scene.atmos, "preset_name"):
             scene.atmos.preset_name = preset.name
         _point_sun(scene,
@@ -124,16 +124,16 @@ def enable(scene, preset=None, *, sun_elevation_deg: float | None = None, sun_az
     chosen = load_preset(preset) if preset is not None else None
     if scene.camera is None:
         raise AtmosError(f"scene '{scene.name}' has no camera: aerial perspective is measured from the camera")
-    from .blender import effect, settings_io
+    from .blender import orchestrator
 
-    with settings_io.batch(scene):
+    with orchestrator.batch(scene):
         if chosen is not None:
             _apply_preset(scene, chosen, sun_elevation_deg, sun_azimuth_deg)
         else:
             _point_sun(scene, sun_elevation_deg, sun_azimuth_deg)
         for key, value in overrides.items():
             setattr(scene.atmos, key, value)
-    return effect.enable_effect(scene)
+    return orchestrator.enable_effect(scene)
 
 
 def is_enabled(scene) -> bool:
@@ -145,6 +145,6 @@ def is_enabled(scene) -> bool:
 def disable(scene) -> None:
     """Turn Atmos off for ``scene``, restoring materials, compositor and world exactly."""
     _ensure_registered()
-    from .blender import effect
+    from .blender import orchestrator
 
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)

@@ -10,8 +10,9 @@ the rays that light the scene).
 """
 
 from .aerial_perspective import (GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING, OUTPUT_TRANSMITTANCE,
-                                 AerialFeatures, build_aerial_perspective, describe_features,
-                                 ensure_aerial_perspective_group, is_current, node_count)
+                                 build_aerial_perspective, describe_features, ensure_aerial_perspective_group,
+                                 is_current, node_count)
+from .terms import AerialFeatures
 from . import in_render  # noqa: F401  (node_groups.in_render, for import_sibling users)
 from .graph import GraphBuilder
 from .parameters import (AERIAL_PARAMETER_NAMES, PARAMETER_NAMES, clear_shader_parameters,

@@ -37,6 +37,7 @@ from __future__ import annotations
 from . import parameters
 from .dome import cos_theta_to_sun, sun_direction
 from .graph import GraphBuilder, Socket
+from .terms import mie_extinction_coefficient, scattering_per_length
 
 #: Straight pieces the curved ray is cut into (``physics.balanced.CURVATURE_PIECES``; a test checks they agree).
 PIECES = 4
@@ -137,10 +138,9 @@ def balanced_terms(g: GraphBuilder, features, s: Socket, view: Socket, pieces: i
     Each piece sees the sun at its lower end, or with ``sun_at="middle"`` at the mean of its ends' altitudes
     (the Per Pixel variant: ``physics.balanced``'s docstring).
 
-    ``features`` is an :class:`~.aerial_perspective.AerialFeatures`: without Mie scattering there is no phase
+    ``features`` is an :class:`~.terms.AerialFeatures`: without Mie scattering there is no phase
     function for the haze, without Mie scattering or absorption no haze column in the optical depth.
     """
-    from .aerial_perspective import mie_extinction_coefficient, scattering_per_length
 
     mu = cos_theta_to_sun(g, view, sun_direction(g))
     h0, c, k = ray_geometry(g, s, view, camera_altitude)

@@ -32,7 +32,8 @@ import math
 import bpy
 
 from . import parameters
-from .aerial_perspective import AerialFeatures, ensure_aerial_perspective_group
+from .aerial_perspective import ensure_aerial_perspective_group
+from .terms import AerialFeatures
 from .dome import dome_distances, view_direction
 from .graph import GraphBuilder, Socket
 

@@ -213,9 +213,9 @@ def clear_shader_parameters(scene: bpy.types.Scene) -> None:
     if animation is not None and animation.action is not None:
         for name in PARAMETER_NAMES:
             path = f'["{name}"]'
-            for fcurve in _fcurves(animation.action):
+            for fcurve in fcurves_of(animation.action):
                 if fcurve.data_path == path:
-                    _remove_fcurve(animation.action, fcurve)
+                    remove_fcurve(animation.action, fcurve)
     for name in PARAMETER_NAMES:
         if name in scene:
             del scene[name]
@@ -229,7 +229,7 @@ def _as_tuple(value) -> tuple[float, ...] | float:
     return tuple(float(v) for v in value)
 
 
-def _fcurves(action: bpy.types.Action) -> list[bpy.types.FCurve]:
+def fcurves_of(action: bpy.types.Action) -> list[bpy.types.FCurve]:
     """Every F-curve of ``action`` (Blender 4.4+ layered actions keep them in channelbags)."""
     curves = list(getattr(action, "fcurves", None) or [])
     for layer in getattr(action, "layers", ()):
@@ -239,7 +239,7 @@ def _fcurves(action: bpy.types.Action) -> list[bpy.types.FCurve]:
     return curves
 
 
-def _remove_fcurve(action: bpy.types.Action, fcurve: bpy.types.FCurve) -> None:
+def remove_fcurve(action: bpy.types.Action, fcurve: bpy.types.FCurve) -> None:
     """Remove ``fcurve`` from whichever container of ``action`` holds it."""
     legacy = getattr(action, "fcurves", None)
     if legacy is not None and any(c == fcurve for c in legacy):

@@ -11,7 +11,7 @@ out of the render: the materials write three AOVs that cost next to nothing per 
 
 and this compositor group evaluates, per pixel, the mean distance s = 1000 D / C and direction v = V / |V|,
 
-    F_ex, L_in = Fast:     eq. 19 on the layered virtual dome (``aerial_perspective.scattering_terms``)
+    F_ex, L_in = Fast:     eq. 19 on the layered virtual dome (``terms.scattering_terms``)
                  Balanced: densities falling with altitude along the curved ray (``balanced.balanced_terms``),
                            from the camera's altitude h0 = max(origin altitude + z_camera * metres per unit, 0),
                            in its Per Pixel variant: 8 pieces, each seeing the sun at its middle altitude
@@ -40,7 +40,7 @@ from __future__ import annotations
 import bpy
 
 from . import parameters
-from .aerial_perspective import AerialFeatures, scattering_terms
+from .terms import AerialFeatures, scattering_terms
 from .balanced import PER_PIXEL_PIECES, PER_PIXEL_SUN_AT, balanced_terms
 from .precise import precise_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction

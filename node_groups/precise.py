@@ -32,6 +32,7 @@ from . import parameters
 from .balanced import SMALL_OPTICAL_DEPTH, branch_large
 from .dome import cos_theta_to_sun, sun_direction
 from .graph import GraphBuilder, Socket
+from .terms import phase_henyey_greenstein, phase_rayleigh
 
 #: Name of the image the add-on bakes the tables into (packed into the .blend).
 IMAGE_NAME = "Atmos Precise Table"
@@ -162,7 +163,6 @@ def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket, to_top: So
         return _lerp(g, low, high, fa, name)
 
     nu = cos_theta_to_sun(g, view, sun)
-    from .aerial_perspective import phase_henyey_greenstein, phase_rayleigh
 
     light = g.scale(block(DISTANCES, "A_R"), phase_rayleigh(g, nu), label="Phi_R A_R")
     if features.mie:

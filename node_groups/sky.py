@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import bpy
 
 from . import parameters
-from .aerial_perspective import AerialFeatures, scattering_terms
+from .terms import AerialFeatures, scattering_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction, view_direction
 from .graph import GraphBuilder, Socket
 from .precise import ALTITUDES, distance_to_top, precise_terms, tile_camera

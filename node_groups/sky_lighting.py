@@ -32,7 +32,7 @@ import bpy
 import numpy as np
 
 from . import parameters
-from .aerial_perspective import phase_henyey_greenstein, phase_rayleigh
+from .terms import phase_henyey_greenstein, phase_rayleigh
 from .graph import GraphBuilder, Socket
 from .sky import SkyFeatures, finish_radiance_group, ground, is_stamped, start_radiance_graph
 

@@ -23,7 +23,7 @@ import bpy  # noqa: E402
 
 import atmos_addon  # noqa: E402
 from atmos_addon import presets  # noqa: E402
-from atmos_addon.blender import effect, settings_io  # noqa: E402
+from atmos_addon.blender import orchestrator  # noqa: E402
 
 
 def build_scene(n_materials: int, n_objects: int):
@@ -78,10 +78,10 @@ def main() -> None:
     results = {"blender": bpy.app.version_string}
 
     scene = build_scene(args.small, args.small * 4)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     time_syncs(scene, 3)  # warm the caches
     results["sync_small_ms"] = time_syncs(scene, args.repeats)
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
 
     start = time.perf_counter()
     scene = build_scene(args.materials, args.objects)
@@ -90,7 +90,7 @@ def main() -> None:
     start, cpu_start = time.perf_counter(), time.process_time()
     if profile:
         profile.enable()
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     if profile:
         profile.disable()
     results["enable_s"] = time.perf_counter() - start
@@ -102,14 +102,14 @@ def main() -> None:
     preset_times = []
     for name in ("overcast", "clear", "mars", "sunset"):
         start = time.perf_counter()
-        settings_io.apply_atmosphere(scene, presets.load(name).atmosphere)
+        orchestrator.apply_atmosphere(scene, presets.load(name).atmosphere)
         preset_times.append(time.perf_counter() - start)
     results["preset_ms"] = sum(preset_times[1:]) / len(preset_times[1:]) * 1000.0  # the first loads the parser
     start = time.perf_counter()
-    effect.refresh_effect(scene)
+    orchestrator.refresh_effect(scene)
     results["refresh_s"] = time.perf_counter() - start
     start = time.perf_counter()
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     results["disable_s"] = time.perf_counter() - start
     atmos_addon.unregister()
     print(json.dumps(results), flush=True)

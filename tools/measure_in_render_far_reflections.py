@@ -37,7 +37,7 @@ from numpy.lib.stride_tricks import sliding_window_view  # noqa: E402
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender import effect, in_render  # noqa: E402
+from atmos_addon.blender import in_render, orchestrator  # noqa: E402
 from sample_scenes import valley  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -60,7 +60,7 @@ def far_mirrors(tmp: Path) -> None:
         out = Vector((x, 0.3, math.tan(math.radians(elevation)))).normalized()
         t._mirror_towards(f"Mirror {column}", view, 50_000.0, out, 300.0)
         cases.append((column, elevation, view))
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert in_render.is_installed(scene)
     pixels = t._render(scene, tmp, "far_mirrors")
     print("| reflected ray elevation | within 0.1 % | In-Render / expected (R, G, B) |")

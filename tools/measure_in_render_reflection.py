@@ -66,7 +66,7 @@ from mathutils import Vector  # noqa: E402
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender import compositor, facts, in_render, sync  # noqa: E402
+from atmos_addon.blender import compositor, facts, in_render, scene_reading  # noqa: E402
 from atmos_addon.physics.dome_mesh import dome_radius  # noqa: E402
 from sample_scenes import valley  # noqa: E402
 
@@ -216,8 +216,8 @@ def _exit_distance(q0: np.ndarray, d: np.ndarray, planet: float, scale_height: f
 
 def predicted_residual(scene, origin: np.ndarray, points: np.ndarray, out: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(r from the dome geometry, exp(beta_ex dot(p - c, d))), each (N, 3): the reflected sky's extra factor."""
-    atmosphere = sync.atmosphere_of(scene)
-    metres = sync.metres_per_unit(scene)
+    atmosphere = scene_reading.atmosphere_of(scene)
+    metres = scene_reading.metres_per_unit(scene)
     q0 = (points - origin) * metres
     elevation = np.arcsin(np.clip(out[..., 2], -1.0, 1.0))
     log_r = np.zeros(q0.shape[:-1] + (3,))

@@ -34,7 +34,7 @@ import bpy
 
 from .. import import_sibling
 from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_TRANSMITTANCE, AOV_VIEW, AOVS
-from .materials import TAG
+from .tree_edits import TAG
 
 GROUP_NAME = "Atmos Aerial Composite"
 GROUP_VERSION = 1

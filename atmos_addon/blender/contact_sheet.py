@@ -28,7 +28,7 @@ from bpy.props import IntProperty, StringProperty
 
 from .. import presets
 from ..presets import Preset, PresetError
-from . import bitmap_font, preset_ops, scene_state, settings_io, sync
+from . import bitmap_font, orchestrator, preset_ops, scene_state
 
 DEFAULT_ELEVATIONS_DEG = (60.0, 20.0, 5.0, 1.0)
 DEFAULT_CELL_SIZE = (160, 90)
@@ -186,12 +186,10 @@ class ContactSheetJob:
         preset = self.presets[row]
         elevation = self.elevations[column]
         azimuth = self._azimuth if preset.sun_azimuth_deg is None else math.radians(preset.sun_azimuth_deg)
-        with settings_io.batch(scene):
-            settings_io.apply_atmosphere(scene, preset.atmosphere)
+        with orchestrator.batch(scene):
+            orchestrator.apply_atmosphere(scene, preset.atmosphere)
             preset_ops.set_sun_angles(scene, math.radians(elevation), azimuth)
             _update_view_layers(scene)  # the sync at the end of the batch reads the lamp's new matrix
-        if scene.atmos.enabled:
-            sync.sync_scene(scene)
         bpy.ops.render.render(write_still=True, scene=scene.name)
         cell = _read_png(Path(scene.render.filepath))
         width, height = self.cell_size

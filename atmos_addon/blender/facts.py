@@ -7,6 +7,7 @@ Everything Atmos builds for a scene follows from :func:`plan_of`; :mod:`atmos_ad
 from __future__ import annotations
 
 from ..plan import Plan, SceneFacts, plan_for
+from .scene_reading import groups
 
 
 def _own_facts(scene, other_modes: tuple[str, ...] = ()) -> SceneFacts:
@@ -43,3 +44,15 @@ def facts_of(scene) -> SceneFacts:
 def plan_of(scene) -> Plan:
     """What Atmos builds for ``scene`` (:func:`atmos_addon.plan.plan_for`)."""
     return plan_for(facts_of(scene))
+
+
+def aerial_features(plan: Plan):
+    """The aerial node groups' feature set for ``plan`` (:class:`node_groups.terms.AerialFeatures`)."""
+    return groups().terms.AerialFeatures(mie=plan.mie, absorption=plan.absorption, level=plan.level)
+
+
+def sky_features(plan: Plan):
+    """The sky group's feature set for ``plan`` (:class:`node_groups.sky.SkyFeatures`): the plan's terms, ground and
+    sky level (the Precise table's sky at the Precise level, the virtual dome otherwise)."""
+    return groups().sky.SkyFeatures(mie=plan.mie, absorption=plan.absorption, ground=plan.sky_ground,
+                                    level=plan.sky_level)

@@ -23,6 +23,8 @@ import hashlib
 
 import bpy
 
+from . import compositor, facts, materials, scene_reading
+
 FINGERPRINT_KEY = "atmos_fingerprint"
 STAMP_KEY = "atmos_fingerprint_of"
 
@@ -157,34 +159,29 @@ def warning(name: str) -> str:
 
 
 def reset_groups(scene, names=None) -> list[str]:
-    """Rebuild the managed groups (all present ones, or ``names``) in place for ``scene``'s settings; their names.
+    """Rebuild the managed groups (all present ones, or ``names``) in place for ``scene``'s plan; their names.
 
     Each tree keeps its identity and its interface sockets, so the group nodes in materials and worlds
     keep their links; only the nodes inside are rebuilt.
     """
-    from . import materials, sync
-
-    groups = sync.node_groups()
-    settings = scene.atmos
+    groups = scene_reading.groups()
+    plan = facts.plan_of(scene)
+    aerial_features = facts.aerial_features(plan)
     done = []
     for tree in list(_managed_trees()):
         if names is not None and tree.name not in names:
             continue
         if tree.name == AERIAL:
-            groups.aerial_perspective.build_aerial_perspective(tree, sync.features_from_settings(settings))
+            groups.aerial_perspective.build_aerial_perspective(tree, aerial_features)
         elif tree.name == SKY:
-            groups.sky.build_sky(tree, sync.sky_features_from_settings(settings))
+            groups.sky.build_sky(tree, facts.sky_features(plan))
         elif tree.name == PER_PIXEL:
-            from . import compositor
-
-            groups.per_pixel.build_per_pixel_composite(tree, sync.features_from_settings(settings),
-                                                       compositor.ensure_composite_group())
+            groups.per_pixel.build_per_pixel_composite(tree, aerial_features, compositor.ensure_composite_group())
         else:
-            aerial = bpy.data.node_groups.get(AERIAL) or sync.ensure_group(scene)
-            if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
-                materials._surface_group_interface(tree)
-            evaluations = tuple(str(tree.get(materials.EVALUATIONS_KEY, "COMPOSITOR")).split(","))
-            materials._populate_surface_group(tree, aerial, evaluations)   # the modes it was built for
+            aerial = (bpy.data.node_groups.get(AERIAL)
+                      or groups.aerial_perspective.ensure_aerial_perspective_group(aerial_features))
+            modes = tuple(str(tree.get(materials.EVALUATIONS_KEY, "COMPOSITOR")).split(","))
+            materials.build_surface_group(tree, aerial, modes)   # the modes it was built for
         stamp(tree)
         done.append(tree.name)
     invalidate()
@@ -192,6 +189,6 @@ def reset_groups(scene, names=None) -> list[str]:
 
 
 def on_depsgraph_update(_scene, depsgraph) -> None:
-    """Drop the cached comparison when a node tree changed (called by :func:`.sync.on_depsgraph_update`)."""
+    """Drop the cached comparison when a node tree changed (called by :func:`.handlers.on_depsgraph_update`)."""
     if _cache is not None and depsgraph.id_type_updated("NODETREE"):
         invalidate()

@@ -33,8 +33,8 @@ import bpy
 from .. import import_sibling
 from ..physics.dome_mesh import dome_mesh
 from ..plan import EEVEE_CLIP_RATIO_LIMIT
-from . import materials
-from .materials import TAG
+from . import materials, tree_edits
+from .tree_edits import TAG
 
 STATE_KEY = "atmos_in_render"
 COLLECTION_NAME = "Atmos In-Render"
@@ -91,7 +91,7 @@ def _emits(tree, seen=None) -> bool:
 
 def _new_node(tree, bl_idname: str, x: float, y: float):
     node = tree.nodes.new(bl_idname)
-    materials.place_last(tree.nodes, x, y)
+    tree_edits.place_last(tree.nodes, x, y)
     return node
 
 
@@ -100,8 +100,8 @@ def inject(material, surface_group) -> None:
     materials.remove(material)
     tree = material.node_tree
     nodes = tree.nodes
-    x, y = materials.free_spot(nodes)
-    user_output = materials.cycles_output(tree)
+    x, y = tree_edits.free_spot(nodes)
+    user_output = tree_edits.cycles_output(tree)
     opacity_socket, opacity_value, invert = materials.opacity(tree)
     group = _new_node(tree, "ShaderNodeGroup", x, y)
     group.label = "Atmos In-Render Surface"
@@ -116,8 +116,8 @@ def inject(material, surface_group) -> None:
         if surface.is_linked:
             tree.links.new(surface.links[0].from_socket, group.inputs["Surface"])
         for name in ("Volume", "Displacement", "Thickness"):
-            materials.copy_input(tree, user_output, output, name)
-        materials.take_over_cycles_output(tree, output, user_output)
+            tree_edits.copy_input(tree, user_output, output, name)
+        tree_edits.take_over_cycles_output(tree, output, user_output)
     tree.links.new(group.outputs["Shader"], output.inputs["Surface"])
     target = group.inputs["Transparency" if invert else "Opacity"]
     if opacity_socket is not None:
@@ -126,7 +126,7 @@ def inject(material, surface_group) -> None:
         target.default_value = opacity_value
     cycles = getattr(material, "cycles", None)
     if cycles is not None and hasattr(cycles, "emission_sampling") and not _emits(tree):
-        output[materials.EMISSION_SAMPLING_KEY] = cycles.emission_sampling
+        output[tree_edits.EMISSION_SAMPLING_KEY] = cycles.emission_sampling
         cycles.emission_sampling = "NONE"
 
 
@@ -283,7 +283,7 @@ def install_world(scene, features) -> str | None:
         return None
     remove_world(world)
     tree = world.node_tree
-    output = materials.cycles_output(tree, "ShaderNodeOutputWorld", WORLD_TAGS)
+    output = tree_edits.cycles_output(tree, "ShaderNodeOutputWorld", WORLD_TAGS)
     if output is None or not output.inputs["Surface"].is_linked:
         return None
     from .world import camera_background
@@ -316,7 +316,7 @@ def install_world(scene, features) -> str | None:
         active = next((n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and n.is_active_output
                        and n != world_output), None)
         if active is not None:
-            world_output[materials.REACTIVATE_KEY] = active.name
+            world_output[tree_edits.REACTIVATE_KEY] = active.name
         world_output.is_active_output = True
     return None
 
@@ -324,7 +324,7 @@ def install_world(scene, features) -> str | None:
 def remove_world(world) -> None:
     """Delete the world nodes of :func:`install_world` (re-activating the output that was active before)."""
     tagged = world_nodes(world)
-    reactivate = next((n.get(materials.REACTIVATE_KEY) for n in tagged if n.get(materials.REACTIVATE_KEY)), None)
+    reactivate = next((n.get(tree_edits.REACTIVATE_KEY) for n in tagged if n.get(tree_edits.REACTIVATE_KEY)), None)
     for node in tagged:
         world.node_tree.nodes.remove(node)
     if reactivate and world.node_tree.nodes.get(reactivate) is not None:

@@ -37,8 +37,9 @@ from dataclasses import dataclass, field
 import bpy
 
 from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_TRANSMITTANCE, AOV_VIEW
+from .tree_edits import (TAG, active_of, copy_input, cycles_of, cycles_output, free_spot, output_nodes, place_last,
+                         remove_tagged, surface_link, take_over_cycles_output)
 
-TAG = "atmos_tag"
 PREFIX = "Atmos "
 #: The AOV names (:data:`atmos_addon.plan.AOVS`); the Per Pixel mode's distance AOV holds alpha s / 1000 (s in m).
 DISTANCE_AOV_UNIT_M = 1000.0
@@ -55,11 +56,6 @@ NODE_LABEL = "Atmos Surface AOVs"
 #: Above this many materials per pass, the surface group is emptied while materials are edited (see inject_scene).
 BULK_THRESHOLD = 16
 
-#: Custom properties on tagged nodes: what to restore when they are removed (:func:`remove`). The user's
-#: Cycles-target Material Output that was active before a tagged one took over, and the material's Cycles emission
-#: sampling before In-Render mode changed it.
-REACTIVATE_KEY = "atmos_reactivate"
-EMISSION_SAMPLING_KEY = "atmos_emission_sampling"
 #: Tags of the three nodes that keep a surface opaque in Cycles when Cycles folds its shader away (:func:`keep_opaque`).
 OPAQUE_BLACK_TAG, OPAQUE_ADD_TAG, OPAQUE_OUTPUT_TAG = "opaque black", "opaque add", "opaque output"
 OPAQUE_TAGS = (OPAQUE_BLACK_TAG, OPAQUE_ADD_TAG, OPAQUE_OUTPUT_TAG)
@@ -138,46 +134,6 @@ def skip_reason(material) -> str | None:
     return None
 
 
-def _output_nodes(tree, kind: str = "ShaderNodeOutputMaterial", skip_tags=None) -> list:
-    """The output nodes of type ``kind``, without Atmos' own: every tagged one, or those tagged ``skip_tags``."""
-    if skip_tags is None:
-        return [node for node in tree.nodes if node.bl_idname == kind and not node.get(TAG)]
-    return [node for node in tree.nodes if node.bl_idname == kind and node.get(TAG) not in skip_tags]
-
-
-def _active_of(outputs):
-    """The output the surface's opacity is read from: the active "All" one, else the first active one."""
-    best = None
-    for node in outputs:
-        if node.is_active_output:
-            if node.target == "ALL":
-                return node
-            best = best or node
-    return best
-
-
-def _cycles_of(outputs):
-    """The output Cycles renders: an active one with target Cycles, any Cycles one, else the active "All" one, else
-    any "All" one."""
-    best, best_rank = None, 4
-    for node in outputs:
-        target = node.target
-        if target not in ("CYCLES", "ALL"):
-            continue
-        rank = (0 if target == "CYCLES" else 2) + (0 if node.is_active_output else 1)
-        if rank < best_rank:
-            best, best_rank = node, rank
-    return best
-
-
-def _surface_link(output):
-    """The link into ``output``'s Surface, or None (one ``links`` lookup, the slow part of reading a socket)."""
-    if output is None:
-        return None
-    surface = output.inputs["Surface"]
-    return surface.links[0] if surface.is_linked else None
-
-
 #: Shaders through which Atmos sees what lies behind: a Transparent BSDF shows the surface behind, a Holdout cuts a
 #: hole in the render (alpha 0) that a compositor fills with a plate, which has its own atmosphere: Atmos leaves
 #: the hole as it is (coverage 0), in both engines.
@@ -193,7 +149,7 @@ def opacity(tree, link=False, shader=None):
     into that output's Surface when the caller has it (None: unlinked), ``shader`` its source node.
     """
     if link is False:
-        link = _surface_link(_active_of(_output_nodes(tree)))
+        link = surface_link(active_of(output_nodes(tree)))
     if link is None:
         return None, None, False
     shader = link.from_node if shader is None else shader
@@ -218,37 +174,6 @@ def opacity(tree, link=False, shader=None):
 
 
 # -- the output Cycles renders, and surfaces Cycles folds away ------------------------------------------------
-
-
-def cycles_output(tree, kind: str = "ShaderNodeOutputMaterial", skip_tags=None):
-    """The output node (of type ``kind``: material or world) Cycles renders: an active one with target Cycles, any
-    Cycles one, else the active "All" one, else any "All" one (Atmos' own outputs left out: every tagged one, or
-    those tagged ``skip_tags``)."""
-    return _cycles_of(_output_nodes(tree, kind, skip_tags))
-
-
-def copy_input(tree, source_output, target_output, name: str) -> None:
-    """Give ``target_output``'s input ``name`` the link (or the value) of ``source_output``'s."""
-    source, target = source_output.inputs.get(name), target_output.inputs.get(name)
-    if source is None or target is None:
-        return
-    if source.is_linked:
-        tree.links.new(source.links[0].from_socket, target)
-    elif hasattr(source, "default_value") and hasattr(target, "default_value"):
-        target.default_value = source.default_value
-
-
-def take_over_cycles_output(tree, ours, user_output) -> None:
-    """Make the tagged Cycles-target output ``ours`` the one Cycles renders. Blender prefers an output of the engine's
-    own target to an "All" one, so this matters only where the user has a Cycles-target output too: ours is made
-    active and theirs remembered (:data:`REACTIVATE_KEY`), to be made active again by :func:`remove`."""
-    if user_output is None or user_output.target != "CYCLES":
-        return
-    active = next((n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial" and n.is_active_output
-                   and n != ours), None)
-    if active is not None:
-        ours[REACTIVATE_KEY] = active.name
-    ours.is_active_output = True
 
 
 def _is_zero(socket) -> bool:
@@ -328,7 +253,7 @@ def surface_folds_away(tree, output=False, link=False, shader=None) -> bool:
     output = cycles_output(tree) if output is False else output
     if output is None:
         return False
-    link = _surface_link(output) if link is False else link
+    link = surface_link(output) if link is False else link
     if link is not None and not _link_folds_away(link, node=shader):
         return False
     volume = output.inputs.get("Volume")
@@ -355,7 +280,7 @@ def keep_opaque(material, present: list | None = None, output=False, link=False,
     tree = material.node_tree
     present = _opaque_nodes(material) if present is None else present
     user_output = cycles_output(tree) if output is False else output
-    link = _surface_link(user_output) if link is False else link
+    link = surface_link(user_output) if link is False else link
     needed = surface_folds_away(tree, user_output, link, shader)
     source = link.from_socket if needed and link is not None else None
     if present and needed:
@@ -365,7 +290,7 @@ def keep_opaque(material, present: list | None = None, output=False, link=False,
             return False
     if not present and not needed:
         return False
-    _remove_nodes(material, present)
+    remove_tagged(material, present)
     if not needed:
         return True
     x, y = free_spot(tree.nodes)
@@ -413,13 +338,16 @@ def _surface_group_interface(tree) -> None:
     transparency.default_value, transparency.min_value, transparency.max_value = 0.0, 0.0, 1.0
 
 
-def _populate_surface_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None:
-    """Aerial group -> opacity weights -> AOV outputs; alpha = Opacity * (1 - Transparency).
+def build_surface_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None:
+    """Build the material group in ``tree`` (its interface when missing): aerial group -> opacity weights -> AOV
+    outputs; alpha = Opacity * (1 - Transparency).
 
     Only the outputs of the ``evaluations`` in use ("COMPOSITOR": the aerial group and the transmittance and
     in-scattering AOVs; "PER_PIXEL": the distance and view AOVs) are built: Eevee compiles every AOV output
     of a material, declared or not (a group holding both took Eevee 417 s to compile where one took 2 s).
     """
+    if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
+        _surface_group_interface(tree)
     nodes, links = tree.nodes, tree.links
     nodes.clear()
     group_in = nodes.new("NodeGroupInput")
@@ -528,7 +456,7 @@ def ensure_surface_group(aerial_group, evaluations=("COMPOSITOR",)):
         _surface_group_interface(tree)
     if not _is_populated(tree, aerial_group, evaluations):
         inner = _inner_groups(tree)
-        _populate_surface_group(tree, aerial_group, evaluations)
+        build_surface_group(tree, aerial_group, evaluations)
         _remove_unused(inner)   # the aerial group, when the Compositor mode's outputs left
     return tree
 
@@ -568,34 +496,6 @@ def _remove_stand_in(tree) -> None:
         bpy.data.node_groups.remove(tree, do_unlink=False, do_id_user=False, do_ui_user=False)
 
 
-def free_spot(nodes) -> tuple[float, float]:
-    """Where a new node goes: 200 units right of the rightmost of ``nodes``, level with the highest ((0, 0) if none).
-
-    Read with ``foreach_get``: no Python object per node (a third of the Python time of a 5.0 enable went to
-    reading each node's location and width one by one).
-    """
-    count = len(nodes)
-    if not count:
-        return 0.0, 0.0
-    locations, widths = [0.0] * (2 * count), [0.0] * count
-    nodes.foreach_get("location", locations)
-    nodes.foreach_get("width", widths)
-    return max(map(float.__add__, locations[0::2], widths)) + 200.0, max(locations[1::2])
-
-
-def place_last(nodes, x: float, y: float) -> None:
-    """Move the last node of ``nodes`` to (x, y) without an RNA update.
-
-    Every node property write runs a node-tree update (19-27 us in a file of 5000 materials, Blender 4.5-5.3,
-    ``tools/bench_node_edits.py``); ``foreach_set`` writes the raw locations (the other nodes get back the values
-    just read) and skips that update.
-    """
-    locations = [0.0] * (2 * len(nodes))
-    nodes.foreach_get("location", locations)
-    locations[-2:] = (x, y)
-    nodes.foreach_set("location", locations)
-
-
 def inject(material, surface_group, tagged=None) -> None:
     """Add the Atmos surface group node to one node-based, editable material (idempotent).
 
@@ -605,10 +505,10 @@ def inject(material, surface_group, tagged=None) -> None:
     just listed them (they are replaced).
     """
     tree = material.node_tree
-    _remove_nodes(material, atmos_nodes(material) if tagged is None else tagged)
-    outputs = _output_nodes(tree)
-    active, cycles = _active_of(outputs), _cycles_of(outputs)
-    active_link = _surface_link(active)
+    remove_tagged(material, atmos_nodes(material) if tagged is None else tagged)
+    outputs = output_nodes(tree)
+    active, cycles = active_of(outputs), cycles_of(outputs)
+    active_link = surface_link(active)
     shader = None if active_link is None else active_link.from_node
     opacity_socket, opacity_value, invert = opacity(tree, active_link, shader)
     x, y = free_spot(tree.nodes)
@@ -628,24 +528,6 @@ def inject(material, surface_group, tagged=None) -> None:
         keep_opaque(material, present=[], output=cycles)
 
 
-def _remove_nodes(material, tagged) -> None:
-    """Delete the tagged nodes ``tagged`` of ``material``, restoring what they remember: the material's Cycles
-    emission sampling and the user output that was active before one of them took over (:data:`REACTIVATE_KEY`)."""
-    if not tagged:
-        return
-    reactivate = None
-    for node in tagged:
-        sampling = node.get(EMISSION_SAMPLING_KEY)
-        if sampling is not None and getattr(material, "cycles", None) is not None:
-            material.cycles.emission_sampling = sampling
-        reactivate = node.get(REACTIVATE_KEY) or reactivate
-    nodes = material.node_tree.nodes
-    for node in tagged:
-        nodes.remove(node)
-    if reactivate and nodes.get(reactivate) is not None:
-        nodes[reactivate].is_active_output = True
-
-
 def remove(material) -> bool:
     """Delete exactly the Atmos-tagged nodes of ``material`` (and with them their links); True if any.
 
@@ -653,7 +535,7 @@ def remove(material) -> bool:
     restored from what those nodes remember (:func:`_remove_nodes`).
     """
     tagged = atmos_nodes(material)
-    _remove_nodes(material, tagged)
+    remove_tagged(material, tagged)
     return bool(tagged)
 
 

@@ -1,14 +1,15 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Operators: enable, disable and refresh aerial perspective on the active scene (thin wrappers over :mod:`.effect`)."""
+"""Operators: enable, disable and refresh aerial perspective on the active scene (thin wrappers over
+:mod:`.orchestrator`)."""
 
 from __future__ import annotations
 
 import bpy
 
-from . import effect, group_integrity
+from . import group_integrity, orchestrator
 
 
-def _report(operator, report: effect.Report) -> None:
+def _report(operator, report: orchestrator.Report) -> None:
     for name, reason in report.skipped:
         operator.report({"WARNING"}, f"Atmos: material '{name}' skipped: {reason}")
     operator.report({"INFO"}, f"Atmos: {len(report.managed)} material(s) with aerial perspective")
@@ -23,7 +24,7 @@ class ATMOS_OT_enable(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            report = effect.enable_effect(context.scene)
+            report = orchestrator.enable_effect(context.scene)
         except (RuntimeError, ValueError, TypeError) as error:
             self.report({"ERROR"}, f"Atmos could not enable aerial perspective: {error}")
             return {"CANCELLED"}
@@ -40,7 +41,7 @@ class ATMOS_OT_disable(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            stripped = effect.disable_effect(context.scene)
+            stripped = orchestrator.disable_effect(context.scene)
         except (RuntimeError, ValueError, TypeError) as error:
             self.report({"ERROR"}, f"Atmos could not remove aerial perspective: {error}")
             return {"CANCELLED"}
@@ -57,7 +58,7 @@ class ATMOS_OT_refresh(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            report = effect.refresh_effect(context.scene)
+            report = orchestrator.refresh_effect(context.scene)
         except (RuntimeError, ValueError, TypeError) as error:
             self.report({"ERROR"}, f"Atmos could not refresh aerial perspective: {error}")
             return {"CANCELLED"}

@@ -19,6 +19,7 @@ import bpy
 import numpy as np
 
 from ..physics.precise import DEFAULT_SHAPE, Tile, bake_tile
+from . import compositor, facts, scene_reading
 from .debounce import Debounced
 
 #: Largest texture side GPUs accept (OpenGL's usual GL_MAX_TEXTURE_SIZE), px.
@@ -27,12 +28,6 @@ MAX_TEXTURE_SIZE = 16384
 TILES_PER_COLUMN = MAX_TEXTURE_SIZE // DEFAULT_SHAPE.altitudes
 _KEY = "atmos_bake_key"
 _TILES = "atmos_tiles"
-
-
-def node_groups():
-    from . import sync
-
-    return sync.node_groups()
 
 
 def _camera_altitude_m(scene, metres_per_unit: float) -> float:
@@ -45,15 +40,13 @@ def _camera_altitude_m(scene, metres_per_unit: float) -> float:
 def frame_inputs(scene) -> list[tuple[int, float, float]]:
     """(frame, camera altitude m, sun elevation rad) per tile: the current frame only, or every frame of the range
     when the camera or the sun moves over time (the current frame is restored)."""
-    from . import sun_lamp, sync
-
-    metres = sync.metres_per_unit(scene)
+    metres = scene_reading.metres_per_unit(scene)
 
     def now(frame: int) -> tuple[int, float, float]:
-        direction, _ = sync.sun_direction(scene)
+        direction, _ = scene_reading.sun_direction(scene)
         return frame, _camera_altitude_m(scene, metres), math.asin(float(np.clip(direction[2], -1.0, 1.0)))
 
-    if not (sun_lamp.moves_over_time(scene.camera) or sun_lamp.is_sun_animated(scene)):
+    if not moves(scene):
         return [now(scene.frame_current)]
     current = scene.frame_current
     try:
@@ -79,7 +72,7 @@ def tile_origin(index: int, shape=DEFAULT_SHAPE) -> tuple[int, int]:
 
 def _ensure_image(width: int, height: int) -> bpy.types.Image:
     """The table image at this size (a new float, non-colour image when missing or resized)."""
-    name = node_groups().precise.IMAGE_NAME
+    name = scene_reading.groups().precise.IMAGE_NAME
     image = bpy.data.images.get(name)
     if image is not None and tuple(image.size) != (width, height):
         bpy.data.images.remove(image)
@@ -114,7 +107,7 @@ def write_tiles(tiles: list[Tile]) -> bpy.types.Image:
 def _link_image(image: bpy.types.Image) -> None:
     """Point the image nodes of the aerial group, of the Precise sky and of the Per Pixel compositor group (those
     built) at ``image``."""
-    groups = node_groups()
+    groups = scene_reading.groups()
     for name in (groups.aerial_perspective.GROUP_NAME, groups.sky.SKY_GROUP_NAME, groups.per_pixel.GROUP_NAME):
         group = bpy.data.node_groups.get(name)
         for node in group.nodes if group is not None else ():
@@ -124,7 +117,7 @@ def _link_image(image: bpy.types.Image) -> None:
 
 def _write_parameters(scene, origin: tuple[int, int], camera_altitude_m: float, tile: Tile, top_m: float,
                       size: tuple[int, int]) -> None:
-    parameters = node_groups().parameters
+    parameters = scene_reading.groups().parameters
     scene[parameters.PRECISE_TILE] = (float(origin[0]), float(origin[1]), max(float(camera_altitude_m), 0.0))
     scene[parameters.PRECISE_SCALE] = (float(tile.max_distance_m), float(top_m), 0.0)
     scene[parameters.PRECISE_ATLAS] = (float(size[0]), float(size[1]), 0.0)
@@ -135,25 +128,23 @@ def _clear_keys(scene) -> None:
     animation = scene.animation_data
     if animation is None or animation.action is None:
         return
-    parameters = node_groups().parameters
+    parameters = scene_reading.groups().parameters
     paths = {f'["{name}"]' for name in parameters.PRECISE_PARAMETER_NAMES}
-    for fcurve in [c for c in parameters._fcurves(animation.action) if c.data_path in paths]:
-        parameters._remove_fcurve(animation.action, fcurve)
+    for fcurve in [c for c in parameters.fcurves_of(animation.action) if c.data_path in paths]:
+        parameters.remove_fcurve(animation.action, fcurve)
 
 
 def bake(scene, *, force: bool = False) -> int:
     """Bake the scene's tables if their inputs changed (or ``force``); returns the number of tiles baked (0: the
     image was current). Writes and, with several tiles, keys the Precise parameters."""
-    from . import sync
-
     settings = scene.atmos
-    atmosphere = sync.atmosphere_of(scene)
+    atmosphere = scene_reading.atmosphere_of(scene)
     albedo = tuple(float(a) for a in settings.ground_albedo)
     multiple = bool(settings.multiple_scattering)
     inputs = frame_inputs(scene)
     key = _bake_key(atmosphere, albedo, multiple, inputs)
-    image = bpy.data.images.get(node_groups().precise.IMAGE_NAME)
-    if not force and image is not None and image.get(_KEY) == key and node_groups().parameters.PRECISE_TILE in scene:
+    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
+    if not force and image is not None and image.get(_KEY) == key and scene_reading.groups().parameters.PRECISE_TILE in scene:
         _link_image(image)
         _revalidate_drivers(scene)
         return 0
@@ -165,7 +156,7 @@ def bake(scene, *, force: bool = False) -> int:
     size = tuple(image.size)
     _clear_keys(scene)
     top = atmosphere.atmosphere_height
-    names = node_groups().parameters.PRECISE_PARAMETER_NAMES
+    names = scene_reading.groups().parameters.PRECISE_PARAMETER_NAMES
     for index, ((frame, altitude, _), tile) in enumerate(zip(inputs, tiles)):
         _write_parameters(scene, tile_origin(index), altitude, tile, top, size)
         if len(tiles) > 1:
@@ -181,15 +172,13 @@ def bake(scene, *, force: bool = False) -> int:
 
 def _revalidate_drivers(scene) -> None:
     """The Per Pixel group node's drivers read the parameters just written (:func:`.compositor.revalidate_drivers`)."""
-    from . import compositor
-
     compositor.revalidate_drivers(scene)
 
 
 def _constant_interpolation(scene, names) -> None:
-    parameters = node_groups().parameters
+    parameters = scene_reading.groups().parameters
     paths = {f'["{name}"]' for name in names}
-    for fcurve in parameters._fcurves(scene.animation_data.action):
+    for fcurve in parameters.fcurves_of(scene.animation_data.action):
         if fcurve.data_path in paths:
             for point in fcurve.keyframe_points:
                 point.interpolation = "CONSTANT"
@@ -199,9 +188,9 @@ def remove(scene) -> None:
     """Remove the Precise parameters' keys (the parameters are cleared with the others) and, when no scene
     uses the Precise level any more, the table image."""
     _clear_keys(scene)
-    image = bpy.data.images.get(node_groups().precise.IMAGE_NAME)
+    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
     still_used = any(getattr(other, "atmos", None) is not None and other.atmos.enabled and other is not scene
-                     and other.get(node_groups().parameters.PRECISE_TILE) is not None for other in bpy.data.scenes)
+                     and other.get(scene_reading.groups().parameters.PRECISE_TILE) is not None for other in bpy.data.scenes)
     if image is not None and not still_used:
         bpy.data.images.remove(image)
 
@@ -209,14 +198,14 @@ def remove(scene) -> None:
 def free_buffers() -> None:
     """Drop the table image's pixel buffer (and GPU texture) so the next read decodes the packed data. An undo step
     restores the packed data and the bake key but not the buffer Blender keeps in memory."""
-    image = bpy.data.images.get(node_groups().precise.IMAGE_NAME)
+    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
     if image is not None and image.packed_file is not None:
         image.buffers_free()
 
 
 def describe() -> str:
     """One line for reports: how many tiles the table image holds."""
-    image = bpy.data.images.get(node_groups().precise.IMAGE_NAME)
+    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
     if image is None:
         return "Precise: no table baked yet"
     tiles = int(image.get(_TILES, 1))
@@ -226,24 +215,20 @@ def describe() -> str:
 
 def uses_precise(scene) -> bool:
     """True when ``scene`` has the effect on and its plan bakes the Precise level's tables."""
-    from . import facts
-
     settings = getattr(scene, "atmos", None)
     return bool(settings is not None and settings.enabled and facts.plan_of(scene).tables)
 
 
 def moves(scene) -> bool:
     """True when the camera or the sun moves over time (one tile per frame)."""
-    from . import sun_lamp
-
-    return sun_lamp.moves_over_time(scene.camera) or sun_lamp.is_sun_animated(scene)
+    return scene_reading.moves_over_time(scene.camera) or scene_reading.is_sun_animated(scene)
 
 
 def follow(scene) -> None:
     """After a parameter, sun or camera change: re-bake a still scene's one tile (at once in the background, else
     0.3 s after the last change, so a slider drag bakes once). An animated scene's per-frame tiles are re-baked
     by Enable, Refresh and quality changes (:func:`bake`), and in the background with the sun's keys when an edit
-    makes those stale (:func:`.sun_lamp.follow`); in the UI not on every edit (about 0.5 s a frame)."""
+    makes those stale (:func:`.sun_bake.follow`); in the UI not on every edit (about 0.5 s a frame)."""
     if not uses_precise(scene) or moves(scene):
         return
     if bpy.app.background:

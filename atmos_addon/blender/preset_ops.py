@@ -31,7 +31,7 @@ from bpy.props import BoolProperty, StringProperty
 
 from .. import presets
 from ..presets import Preset, PresetError
-from . import scene_state, settings_io, sun_lamp
+from . import orchestrator, scene_state, settings_io, sun_lamp
 
 #: Environment variable naming the user preset folder when Atmos runs from a source checkout.
 USER_DIRECTORY_ENV = "ATMOS_USER_PRESETS"
@@ -162,8 +162,8 @@ def apply_preset(scene, preset: Preset) -> None:
     check_fits_settings(preset)
     state = scene_state.capture(scene)
     try:
-        with settings_io.batch(scene):
-            settings_io.apply_atmosphere(scene, preset.atmosphere)
+        with orchestrator.batch(scene):
+            orchestrator.apply_atmosphere(scene, preset.atmosphere)
             if preset.sun_elevation_deg is not None or preset.sun_azimuth_deg is not None:
                 elevation, azimuth = current_sun_angles_rad(scene)
                 if preset.sun_elevation_deg is not None:

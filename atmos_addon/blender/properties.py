@@ -2,10 +2,10 @@
 """The scene settings of Atmos: one PropertyGroup on ``bpy.types.Scene.atmos``.
 
 Scattering coefficients are stored in 1/km so the interface shows readable numbers
-(clear air scatters about 0.006/km of red light); :func:`.sync.atmosphere_from_settings`
-converts them to the 1/m the physics core uses. Every ``update=`` callback edits shader
-parameter values only (a scene custom-property write); the node group is rebuilt only when
-the feature set (Mie on/off, absorption on/off) changes.
+(clear air scatters about 0.006/km of red light); :func:`.settings_io.atmosphere_from_settings`
+converts them to the 1/m the physics core uses. Every ``update=`` callback goes to the orchestrator
+(:func:`.orchestrator.update`): it edits values (scene custom-property writes) and rebuilds a node group
+only when the plan's feature set (Mie on/off, absorption on/off, the level) changed.
 """
 
 from __future__ import annotations
@@ -31,18 +31,18 @@ def _per_km(values_per_m) -> tuple[float, float, float]:
 
 
 def _on_enabled(self, context) -> None:
-    from . import effect
+    from . import orchestrator
 
-    effect.apply_enabled_state(self.id_data)
+    orchestrator.apply_enabled_state(self.id_data)
 
 
 def _on_parameter(self, context) -> None:
     scene = self.id_data
     if self.enabled:
-        from . import settings_io, sync
+        from . import orchestrator
 
-        if not settings_io.is_batched(scene):
-            sync.sync_scene(scene)
+        if not orchestrator.is_batched(scene):
+            orchestrator.update(scene)
 
 
 def _get_haze(self) -> float:
@@ -95,29 +95,24 @@ def _set_sun_azimuth(self, value: float) -> None:
 
 def _on_sky_enabled(self, context) -> None:
     if self.enabled:
-        from . import effect
+        from . import orchestrator
 
-        effect.apply_sky_state(self.id_data)
+        orchestrator.apply_sky_state(self.id_data)
 
 
 def _on_render_mode(self, context) -> None:
     if self.enabled:
-        from . import effect
+        from . import orchestrator
 
-        effect.enable_effect(self.id_data)
+        orchestrator.enable_effect(self.id_data)
 
 
 def _on_quality(self, context) -> None:
     if self.enabled:
-        from . import quality_choice, settings_io, sync
+        from . import orchestrator
 
-        if not settings_io.is_batched(self.id_data):
-            quality_choice.resolve(self.id_data)
-            sync.sync_scene(self.id_data)
-            from . import precise_tables
-
-            if precise_tables.uses_precise(self.id_data):
-                precise_tables.bake(self.id_data)   # all frames of an animated camera or sun
+        if not orchestrator.is_batched(self.id_data):
+            orchestrator.change_quality(self.id_data)
 
 
 def _poll_sun(self, obj) -> bool:

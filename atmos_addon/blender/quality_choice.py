@@ -18,7 +18,7 @@ from mathutils import Vector
 
 from ..physics.quality import LEVEL_DESCRIPTIONS, Level, SceneSummary, choose_level, nearest_cases
 from ..plan import NOTE_IN_RENDER_FAST
-from . import facts, sun_lamp, sync
+from . import facts, scene_reading
 
 #: Object types with geometry the camera sees (their bounding boxes count for the summary).
 GEOMETRY_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "META", "FONT", "VOLUME", "POINTCLOUD", "CURVES"})
@@ -28,7 +28,7 @@ CAMERA_SAMPLES = 5
 
 def _camera_heights(scene, camera) -> list[float]:
     """World z of the camera (scene units) at the current frame, or over the frame range when it moves."""
-    if not sun_lamp.moves_over_time(camera):
+    if not scene_reading.moves_over_time(camera):
         return [camera.matrix_world.translation.z]
     current, subframe = scene.frame_current, scene.frame_subframe
     start, end = scene.frame_start, scene.frame_end
@@ -59,7 +59,7 @@ def summarize(scene) -> SceneSummary:
     settings = scene.atmos
     if len(scene.view_layers):
         scene.view_layers[0].update()  # objects moved by a script since the last evaluation: current matrices
-    metres = sync.metres_per_unit(scene)
+    metres = scene_reading.metres_per_unit(scene)
     origin = float(settings.origin_altitude)
     camera = scene.camera
     heights = [origin + z * metres for z in _camera_heights(scene, camera)] if camera is not None else [origin]
@@ -73,14 +73,14 @@ def summarize(scene) -> SceneSummary:
         distance = farthest * metres
     else:
         span, distance = 0.0, 0.0
-    direction, _ = sync.sun_direction(scene)
+    direction, _ = scene_reading.sun_direction(scene)
     elevation = math.degrees(math.asin(float(np.clip(direction[2], -1.0, 1.0))))
-    atmosphere = sync.atmosphere_of(scene)
+    atmosphere = scene_reading.atmosphere_of(scene)
     return SceneSummary(camera_altitude_range_m=(min(heights), max(heights)), geometry_altitude_span_m=span,
                         max_view_distance_m=distance, sun_elevation_deg=elevation,
                         mie_zero=not np.any(atmosphere.mie_scattering > 0.0),
                         absorption_zero=not np.any(atmosphere.mie_absorption > 0.0),
-                        sun_animated=sun_lamp.is_sun_animated(scene), planet_radius_m=atmosphere.planet_radius)
+                        sun_animated=scene_reading.is_sun_animated(scene), planet_radius_m=atmosphere.planet_radius)
 
 
 def level_of(settings) -> str:
@@ -99,14 +99,14 @@ def resolve(scene) -> str:
     settings = scene.atmos
     level = _resolve(scene, settings)
     if NOTE_IN_RENDER_FAST in facts.plan_of(scene).notes:
-        sync._set_if_changed(settings, "status_quality", f"{settings.status_quality}. {NOTE_IN_RENDER_FAST}")
+        scene_reading.set_if_changed(settings, "status_quality", f"{settings.status_quality}. {NOTE_IN_RENDER_FAST}")
     return level
 
 
 def _resolve(scene, settings) -> str:
     if settings.quality != "AUTO":
         line = f"{settings.quality.capitalize()}: {LEVEL_DESCRIPTIONS[Level(settings.quality.lower())]}"
-        sync._set_if_changed(settings, "status_quality", line)
+        scene_reading.set_if_changed(settings, "status_quality", line)
         return level_of(settings)
     summary = summarize(scene)
     per_pixel = facts.plan_of(scene).mode == "PER_PIXEL"   # Balanced's Per Pixel variant is more accurate
@@ -115,6 +115,6 @@ def _resolve(scene, settings) -> str:
     verdict = "within" if error <= settings.auto_tolerance / 100.0 else "best available, over"
     line = (f"Auto chose {level.value.capitalize()}: expected error {100.0 * error:.1f}% ({verdict} the "
             f"{settings.auto_tolerance:g}% tolerance) for {situations}")
-    sync._set_if_changed(settings, "auto_level", level.value)
-    sync._set_if_changed(settings, "status_quality", line)
+    scene_reading.set_if_changed(settings, "auto_level", level.value)
+    scene_reading.set_if_changed(settings, "status_quality", line)
     return level.value

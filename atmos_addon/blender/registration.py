@@ -5,23 +5,23 @@ from __future__ import annotations
 
 import bpy
 
-from . import cli_command, contact_sheet, operators, precise_tables, preset_ops, properties, sun_lamp, sync, ui_panel
+from . import cli_command, contact_sheet, handlers, operators, precise_tables, preset_ops, properties, sun_bake, ui_panel
 
-CLASSES = (*properties.CLASSES, *operators.CLASSES, *preset_ops.CLASSES, *contact_sheet.CLASSES, *sun_lamp.CLASSES,
+CLASSES = (*properties.CLASSES, *operators.CLASSES, *preset_ops.CLASSES, *contact_sheet.CLASSES, *sun_bake.CLASSES,
            *ui_panel.CLASSES)
 
 
 def register() -> None:
     for cls in CLASSES:
         bpy.utils.register_class(cls)
-    sync.add_handlers()
+    handlers.add_handlers()
     cli_command.register()
 
 
 def unregister() -> None:
     cli_command.unregister()
-    sync.remove_handlers()
+    handlers.remove_handlers()
     precise_tables.cancel_pending()
-    sun_lamp.cancel_pending()
+    sun_bake.cancel_pending()
     for cls in reversed(CLASSES):
         bpy.utils.unregister_class(cls)

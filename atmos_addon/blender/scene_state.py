@@ -122,7 +122,7 @@ def _write(owner: Any, name: str, value: Any) -> None:
 
 def restore(scene, state: SceneState) -> None:
     """Put back what :func:`capture` recorded; sun lamps added since are removed. Never raises for one value."""
-    from . import settings_io
+    from . import orchestrator
 
     for obj in [obj for obj in _sun_lamps(scene) if obj.name not in state.objects]:
         data = obj.data
@@ -152,7 +152,7 @@ def restore(scene, state: SceneState) -> None:
     for layer in scene.view_layers:
         layer.update()  # matrix_world of the restored lamps, read by the sync at the end of the batch
     settings = scene.atmos
-    with settings_io.batch(scene):
+    with orchestrator.batch(scene):
         for name, value in state.settings.items():
             if hasattr(settings, name):
                 try:

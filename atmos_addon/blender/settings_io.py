@@ -1,22 +1,15 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """``scene.atmos`` <-> the physics :class:`Atmosphere`: the one place that maps fields and units.
 
-The settings store scattering coefficients in 1/km (readable in the interface); the physics core
-works in 1/m. Writing many settings at once (a preset, the API) is batched so the scene is synced
-once, not once per property.
+The settings store scattering coefficients in 1/km (readable in the interface); the physics core works in 1/m.
+Writing many settings at once is batched by :func:`.orchestrator.batch` (one update, not one per property).
 """
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
-
 import numpy as np
 
 from ..physics import Atmosphere
-
-#: Names of scenes whose settings are being written as a batch (their update callbacks wait).
-_batched: set[str] = set()
 
 #: (settings property, Atmosphere field, factor from the Atmosphere's unit to the property's unit).
 FIELD_MAP: tuple[tuple[str, str, float], ...] = (
@@ -33,28 +26,6 @@ FIELD_MAP: tuple[tuple[str, str, float], ...] = (
 )
 
 
-def is_batched(scene) -> bool:
-    """True while :func:`batch` holds the scene's updates back."""
-    return scene.name in _batched
-
-
-@contextlib.contextmanager
-def batch(scene) -> Iterator[None]:
-    """Write several settings of ``scene`` with one sync at the end (when the effect is enabled)."""
-    if scene.name in _batched:
-        yield
-        return
-    _batched.add(scene.name)
-    try:
-        yield
-    finally:
-        _batched.discard(scene.name)
-    if scene.atmos.enabled:
-        from . import sync
-
-        sync.sync_scene(scene)
-
-
 def atmosphere_from_settings(settings) -> Atmosphere:
     """The physics :class:`Atmosphere` that ``scene.atmos`` describes (1/km -> 1/m)."""
     values = {}
@@ -64,10 +35,9 @@ def atmosphere_from_settings(settings) -> Atmosphere:
     return Atmosphere(**values)
 
 
-def apply_atmosphere(scene, atm: Atmosphere) -> None:
-    """Write every field of ``atm`` into ``scene.atmos`` (one sync at the end)."""
-    settings = scene.atmos
-    with batch(scene):
-        for prop, field, factor in FIELD_MAP:
-            value = np.asarray(getattr(atm, field), dtype=float) * factor
-            setattr(settings, prop, tuple(value.tolist()) if value.ndim else float(value))
+def write_atmosphere(settings, atm: Atmosphere) -> None:
+    """Write every field of ``atm`` into ``scene.atmos`` (each write runs its update callback: batch them with
+    :func:`.orchestrator.batch`, or use :func:`.orchestrator.apply_atmosphere`)."""
+    for prop, field, factor in FIELD_MAP:
+        value = np.asarray(getattr(atm, field), dtype=float) * factor
+        setattr(settings, prop, tuple(value.tolist()) if value.ndim else float(value))

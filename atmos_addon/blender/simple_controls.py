@@ -91,7 +91,7 @@ def rayleigh_for_density(settings, density: float) -> tuple[float, ...]:
     return tuple((current * (density / old)).tolist())
 
 
-# ``get``/``set`` callbacks of the scene.atmos properties (one sync per write through settings_io.batch).
+# ``get``/``set`` callbacks of the scene.atmos properties (one update per write through orchestrator.batch).
 
 
 def get_haze_visibility(settings) -> float:
@@ -99,10 +99,10 @@ def get_haze_visibility(settings) -> float:
 
 
 def set_haze_visibility(settings, value: float) -> None:
-    from . import settings_io
+    from . import orchestrator
 
     scattering, absorption = haze_coefficients(settings, float(value))
-    with settings_io.batch(settings.id_data):
+    with orchestrator.batch(settings.id_data):
         settings.mie_scattering_per_km = scattering
         settings.mie_absorption_per_km = absorption
 
@@ -112,8 +112,8 @@ def get_air_density(settings) -> float:
 
 
 def set_air_density(settings, value: float) -> None:
-    from . import settings_io
+    from . import orchestrator
 
     rayleigh = rayleigh_for_density(settings, max(float(value), 0.0))
-    with settings_io.batch(settings.id_data):
+    with orchestrator.batch(settings.id_data):
         settings.rayleigh_scattering_per_km = rayleigh

@@ -25,7 +25,8 @@ import warnings
 
 import bpy
 
-from .materials import REACTIVATE_KEY, TAG
+from .scene_reading import groups
+from .tree_edits import REACTIVATE_KEY, TAG
 
 STATE_KEY = "atmos_sky"
 CREATED_WORLD_NAME = "Atmos Sky World"
@@ -85,11 +86,9 @@ def _add_lighting_branch(tree: bpy.types.NodeTree, features, background: bpy.typ
     own target to an "All" one, so the added Cycles output takes over in Cycles only; where the user already
     has a Cycles-target output, ours is made the active one and theirs re-activated on removal.
     """
-    from .sync import node_groups
-
     x, y = background.location
     lighting = tree.nodes.new("ShaderNodeGroup")
-    lighting.node_tree = node_groups().sky_lighting.new_sky_lighting_group(features)
+    lighting.node_tree = groups().sky_lighting.new_sky_lighting_group(features)
     lighting.label = "Atmos Sky Lighting"
     lighting_background = tree.nodes.new("ShaderNodeBackground")
     lighting_background.label = "Atmos Sky Lighting Background"
@@ -126,9 +125,7 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
     ``features`` (the sky's :class:`~node_groups.sky.SkyFeatures`, default: all terms) shape the lighting group.
     A sky installed by an Atmos without the lighting branch gets it. Returns a sentence for the report.
     """
-    from .sync import node_groups
-
-    features = features if features is not None else node_groups().sky.SkyFeatures()
+    features = features if features is not None else groups().sky.SkyFeatures()
     world = scene.world
     if world is not None and tagged_nodes(world):
         for node in tagged_nodes(world):
@@ -231,18 +228,14 @@ def uninstall_sky(scene: bpy.types.Scene) -> None:
 
 def remove_unused_sky_group() -> None:
     """Delete the "Atmos Sky" node group and lighting groups once no world uses them (no orphan data left)."""
-    from .sync import node_groups
-
     _remove_unused_lighting_groups()
-    sky = bpy.data.node_groups.get(node_groups().sky.SKY_GROUP_NAME)
+    sky = bpy.data.node_groups.get(groups().sky.SKY_GROUP_NAME)
     if sky is not None and sky.users == 0:
         bpy.data.node_groups.remove(sky)
 
 
 def _remove_unused_lighting_groups() -> None:
-    from .sync import node_groups
-
-    module = node_groups().sky_lighting
+    module = groups().sky_lighting
     for group in [g for g in bpy.data.node_groups if g.users == 0 and module.is_sky_lighting_group(g)]:
         bpy.data.node_groups.remove(group)
 
@@ -268,22 +261,32 @@ def _route_other_rays(world: bpy.types.World, precise: bool) -> None:
         world.node_tree.links.new(source.outputs["Background"], socket)
 
 
-def sync_sky_lighting(scene: bpy.types.Scene, atmosphere, features) -> None:
-    """Rebuild the world's lighting group if stale for ``features`` and write its table if the atmosphere changed;
-    at the Precise level route the other rays to the Precise sky (:func:`_route_other_rays`).
-
-    Cheap when nothing changed (one key comparison): safe on every parameter sync.
-    """
-    from ..physics.sky_table import sky_lighting_table
-    from .sync import node_groups
-
+def _lighting_tree(scene: bpy.types.Scene):
     node = _tagged(scene.world, LIGHTING_TAG) if scene.world is not None else None
-    if node is None or node.node_tree is None:
+    return None if node is None else node.node_tree
+
+
+def update_sky_lighting(scene: bpy.types.Scene, features) -> None:
+    """Rebuild the world's lighting group if stale for ``features`` (its table is then written again by
+    :func:`write_sky_lighting_table`) and, at the Precise level, route the other rays to the Precise sky
+    (:func:`_route_other_rays`). Cheap when current."""
+    tree = _lighting_tree(scene)
+    if tree is None:
         return
     _route_other_rays(scene.world, precise=features.level == "precise")
-    module = node_groups().sky_lighting
-    tree = node.node_tree
-    module.ensure_current(tree, features)
+    module = groups().sky_lighting
+    if module.ensure_current(tree, features) and module.TABLE_KEY in tree:
+        del tree[module.TABLE_KEY]
+
+
+def write_sky_lighting_table(scene: bpy.types.Scene, atmosphere) -> None:
+    """Write the lighting group's table when the atmosphere changed (values only; one key comparison when not)."""
+    from ..physics.sky_table import sky_lighting_table
+
+    tree = _lighting_tree(scene)
+    if tree is None:
+        return
+    module = groups().sky_lighting
     key = _table_key(atmosphere)
     if tree.get(module.TABLE_KEY) == key:
         return

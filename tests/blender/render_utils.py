@@ -205,14 +205,14 @@ def render_exr(scene: bpy.types.Scene, path: Path) -> np.ndarray:
 def fast_segment(scene: bpy.types.Scene, direction, distance: float) -> tuple[np.ndarray, np.ndarray]:
     """(F_ex, L_in) of the physics core (Fast, eq. 19) for ``distance`` scene units along the unit ``direction``
     from the camera, with the scene's Atmos settings and sun: what the composite of a surface should be."""
-    from atmos_addon.blender import sync
+    from atmos_addon.blender import scene_reading, settings_io
     from atmos_addon.physics import sun_irradiance_ground
     from atmos_addon.physics.aerial_perspective import extinction, inscattering
 
-    atmosphere = sync.atmosphere_from_settings(scene.atmos)
-    sun_dir, _ = sync.sun_direction(scene)
+    atmosphere = settings_io.atmosphere_from_settings(scene.atmos)
+    sun_dir, _ = scene_reading.sun_direction(scene)
     e_sun = sun_irradiance_ground(math.asin(sun_dir[2]), atmosphere)
-    metres = distance * sync.metres_per_unit(scene)
+    metres = distance * scene_reading.metres_per_unit(scene)
     mu = float(np.dot(np.asarray(direction), sun_dir))
     return extinction(metres, atmosphere), inscattering(metres, mu, atmosphere, e_sun)
 

@@ -19,7 +19,7 @@ from mathutils import Vector
 
 import atmos_addon
 from atmos_addon import plan
-from atmos_addon.blender import compositor, effect, materials, sync
+from atmos_addon.blender import compositor, materials, orchestrator, scene_reading, settings_io
 from atmos_addon.physics import sun_irradiance_ground
 from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, set_use_nodes, \
     user_compositor, view_direction
@@ -95,7 +95,7 @@ def test_enable_disable_restores_the_user_material_exactly() -> None:
     material = user_material()
     mesh_object("A", material)
     before = snapshot(material.node_tree)
-    report = effect.enable_effect(bpy.context.scene)
+    report = orchestrator.enable_effect(bpy.context.scene)
     assert report.managed == ["User"]
     added = materials.atmos_nodes(material)
     assert len(added) == 1 and added[0].node_tree.name == materials.SURFACE_GROUP
@@ -104,7 +104,7 @@ def test_enable_disable_restores_the_user_material_exactly() -> None:
     assert aovs == {"atmos_transmittance", "atmos_inscattering", "atmos_coverage"}
     user_part = [n for n in snapshot(material.node_tree)[0] if n[0] != added[0].name]
     assert user_part == before[0], "injection must not move or change the user's nodes"
-    effect.disable_effect(bpy.context.scene)
+    orchestrator.disable_effect(bpy.context.scene)
     assert snapshot(material.node_tree) == before
 
 
@@ -113,7 +113,7 @@ def test_shared_material_once_and_multiple_slots() -> None:
     for index in range(5):
         mesh_object(f"Obj{index}", shared)
     mesh_object("TwoSlots", shared, second)
-    report = effect.enable_effect(bpy.context.scene)
+    report = orchestrator.enable_effect(bpy.context.scene)
     assert sorted(report.managed) == ["Second", "Shared"]
     for material in (shared, second):
         groups = [n for n in material.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"]
@@ -133,7 +133,7 @@ def test_skipped_materials_and_bare_objects_are_reported(tmp_path: Path) -> None
     mesh_object("Plain", plain)
     mesh_object("UsesLinked", linked)
     mesh_object("Bare")
-    report = effect.enable_effect(bpy.context.scene)
+    report = orchestrator.enable_effect(bpy.context.scene)
     reasons = dict(report.skipped)
     uses_nodes = _quiet(getattr, plain, "use_nodes")  # Blender 5.0 materials always use nodes
     assert uses_nodes or "use nodes" in reasons["NoNodes"].lower()
@@ -149,12 +149,12 @@ def test_enable_disable_enable_is_idempotent() -> None:
     material = user_material()
     mesh_object("A", material)
     scene = bpy.context.scene
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     first = snapshot(material.node_tree), snapshot(compositor._current_tree(scene))
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert (snapshot(material.node_tree), snapshot(compositor._current_tree(scene))) == first
-    effect.disable_effect(scene)
-    effect.enable_effect(scene)
+    orchestrator.disable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert snapshot(material.node_tree)[1] == first[0][1]
     assert {n[0] for n in snapshot(material.node_tree)[0]} == {n[0] for n in first[0][0]}
     assert [a.name for a in scene.view_layers[0].aovs] == ["atmos_transmittance", "atmos_inscattering",
@@ -164,7 +164,7 @@ def test_enable_disable_enable_is_idempotent() -> None:
 def test_material_added_after_enabling_is_picked_up() -> None:
     scene = bpy.context.scene
     mesh_object("A", user_material("First"))
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     late = user_material("Late")
     mesh_object("B", late)
     bpy.context.view_layer.update()  # runs depsgraph_update_post
@@ -173,13 +173,13 @@ def test_material_added_after_enabling_is_picked_up() -> None:
 
 def test_sun_direction_follows_the_lamp() -> None:
     scene = bpy.context.scene
-    direction, status = sync.sun_direction(scene)
+    direction, status = scene_reading.sun_direction(scene)
     assert direction[2] == pytest.approx(math.sqrt(0.5)) and "default" in status
     lamp = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
     scene.collection.objects.link(lamp)
     lamp.rotation_euler = (math.radians(60.0), 0.0, 0.0)  # tilts local +Z towards -Y, 30 deg elevation
     bpy.context.view_layer.update()
-    direction, status = sync.sun_direction(scene)
+    direction, status = scene_reading.sun_direction(scene)
     np.testing.assert_allclose(direction, (0.0, -math.sin(math.radians(60)), math.cos(math.radians(60))), atol=1e-6)
     assert "'Sun'" in status
 
@@ -205,13 +205,13 @@ def test_user_compositor_is_kept_and_restored_exactly() -> None:
     mesh_object("A", user_material())
     tree = _user_compositor(scene)
     before = _compositor_state(scene)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     glare = next(n for n in tree.nodes if n.bl_idname == "CompositorNodeGlare")
     feeding = glare.inputs["Image"].links[0].from_node
     assert feeding.name == compositor.COMPOSITE_NODE, "the Glare must now read the atmosphere-composited image"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert len([n for n in tree.nodes if n.name.startswith(compositor.COMPOSITE_NODE)]) == 1
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert _compositor_state(scene) == before
     assert len(scene.view_layers[0].aovs) == 0
     assert compositor.STATE_KEY not in scene
@@ -222,10 +222,10 @@ def test_missing_compositor_is_created_and_removed() -> None:
     scene.render.engine = "CYCLES"
     mesh_object("A", user_material())
     before = _compositor_state(scene)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     tree = compositor._current_tree(scene)
     assert tree is not None and compositor.COMPOSITE_NODE in tree.nodes
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     after = _compositor_state(scene)
     if IS_5:
         assert after == before
@@ -313,7 +313,7 @@ def _parity(engine: str, tolerance: float, tmp_path: Path) -> dict:
     for name, radiance, distance, column, row in PLANES:
         _emissive_plane(name, radiance, distance, column, row)
     scene.atmos.sky_enabled = False  # the user's plain world must pass through untouched (the sky: test_sky_sun)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     aovs = {}
     for label, rotation in (("high", (math.radians(30), 0, math.radians(40))), ("low", (math.radians(80), 0, 2.5))):
         sun.rotation_euler = rotation
@@ -389,7 +389,7 @@ def test_cutout_does_not_catch_its_own_atmosphere_in_cycles(kind: str, tmp_path:
     far = _emissive_plane("Far wall", (0.8, 0.8, 0.8), 3000.0, 16, 8)
     far.scale = (12.0, 12.0, 1.0)
     _cutout_card(kind, 300.0, 0.2)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     pixels = _render(scene, tmp_path, f"cutout_{kind}")
     hole, card = (10, 8), (22, 8)  # left half of the card is transparent
     expected_far = _expected(scene, (0.8, 0.8, 0.8), 3000.0 / _pixel_direction(*hole)[1], *hole)
@@ -411,7 +411,7 @@ def test_per_pixel_mode_composites_the_physics(engine: str, tolerance: float, tm
     scene.atmos.sky_enabled = False
     scene.atmos.quality = "FAST"
     scene.atmos.render_mode = "PER_PIXEL"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert scene.atmos.status_built.startswith("Fast, ") and "per pixel" in scene.atmos.status_built
     layer_aovs = {aov.name for aov in scene.view_layers[0].aovs}
     assert layer_aovs == {"atmos_coverage", "atmos_distance", "atmos_view"}
@@ -439,7 +439,7 @@ def test_per_pixel_declares_a_colour_aov_first_and_reorders_a_file_that_did_not(
     scene = bpy.context.scene
     mesh_object("Thing", user_material())
     scene.atmos.render_mode = "PER_PIXEL"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     layer = scene.view_layers[0]
     assert [(aov.name, aov.type) for aov in layer.aovs] == [("atmos_view", "COLOR"), ("atmos_coverage", "VALUE"),
                                                              ("atmos_distance", "VALUE")]
@@ -449,14 +449,14 @@ def test_per_pixel_declares_a_colour_aov_first_and_reorders_a_file_that_did_not(
     view = layer.aovs.add()
     view.name, view.type = "atmos_view", "COLOR"
     assert compositor.value_aov_leads(scene, scene[compositor.STATE_KEY].to_dict())
-    effect.refresh_effect(scene)
+    orchestrator.refresh_effect(scene)
     assert layer.aovs[0].name == "atmos_view" and len(layer.aovs) == 3
     tree = compositor._current_tree(scene)
     node = tree.nodes[compositor.COMPOSITE_NODE]
     linked = {link.to_socket.name: link.from_socket.name for link in tree.links if link.to_node == node}
     assert linked == {"Image": "Image", "Coverage": "atmos_coverage", "Distance": "atmos_distance",
                       "View": "atmos_view"}
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert len(layer.aovs) == 0
 
 
@@ -467,7 +467,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     user = user_material()
     mesh_object("Thing", user)
     before = _compositor_state(scene)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     material_nodes = snapshot(user.node_tree)
     scene.atmos.render_mode = "PER_PIXEL"   # the update callback re-enables
     tree = compositor._current_tree(scene)
@@ -486,11 +486,11 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     other = bpy.data.scenes.new("Other")   # a second enabled scene in the Compositor mode: the group holds both
     other.camera = scene.camera
     other.collection.objects.link(bpy.data.objects["Thing"])
-    effect.enable_effect(other)
+    orchestrator.enable_effect(other)
     assert {n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV"} == {
         "atmos_coverage", "atmos_distance", "atmos_view", "atmos_transmittance", "atmos_inscattering"}
     assert bpy.data.node_groups["Atmos Aerial Perspective"].users == 1
-    effect.disable_effect(other)
+    orchestrator.disable_effect(other)
     bpy.data.scenes.remove(other)
     scene["atmos_sun_irradiance"] = (1.0, 2.0, 3.0)   # what sync writes; the driver reads it
     scene.frame_set(scene.frame_current)
@@ -503,7 +503,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     animation = compositor._current_tree(scene).animation_data
     assert animation is None or not animation.drivers
     scene.atmos.render_mode = "PER_PIXEL"
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert _compositor_state(scene) == before or not compositor.GROUP_API
     assert "Atmos Aerial Composite (Per Pixel)" not in bpy.data.node_groups
     tree = compositor._current_tree(scene)
@@ -522,7 +522,7 @@ def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_ag
     scene.collection.objects.link(scene.camera)
     scene.atmos.render_mode = "PER_PIXEL"
     scene.atmos.quality = "BALANCED"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     tree = compositor._current_tree(scene)
     group = bpy.data.node_groups[per_pixel.GROUP_NAME]
     old_inputs = 4 + 8   # Image, Coverage, Distance, View and the eight parameters of the first version
@@ -532,7 +532,7 @@ def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_ag
                   >= old_inputs]:
         tree.animation_data.drivers.remove(curve)
     group[per_pixel.VERSION_KEY] = 1
-    sync.sync_scene(scene)
+    orchestrator.update(scene)
     assert group[per_pixel.VERSION_KEY] == per_pixel.GROUP_VERSION and bpy.data.node_groups[per_pixel.GROUP_NAME] == group
     node = tree.nodes[compositor.COMPOSITE_NODE]
     drivers = [c for c in tree.animation_data.drivers if c.data_path.startswith(f'nodes["{node.name}"]')]
@@ -552,7 +552,7 @@ def test_the_per_pixel_camera_driver_picks_up_a_camera_added_after_enabling() ->
     mesh_object("Thing", user_material())
     scene.atmos.render_mode = "PER_PIXEL"
     scene.atmos.quality = "BALANCED"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     scene.frame_set(scene.frame_current)
     node = compositor._current_tree(scene).nodes[compositor.COMPOSITE_NODE]
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
@@ -570,13 +570,13 @@ def _expected_balanced(scene, radiance, distance: float, column: int, row: int) 
     from atmos_addon.physics.balanced import (CURVATURE_PIECES, PER_PIXEL_PIECES, PER_PIXEL_SUN_AT,
                                               extinction_balanced, inscattering_balanced, sun_optical_depths_ground)
 
-    atmosphere = sync.atmosphere_from_settings(scene.atmos)
-    sun_dir, _ = sync.sun_direction(scene)
+    atmosphere = settings_io.atmosphere_from_settings(scene.atmos)
+    sun_dir, _ = scene_reading.sun_direction(scene)
     elevation = math.asin(sun_dir[2])
     e_sun = sun_irradiance_ground(elevation, atmosphere)
-    metres = distance * sync.metres_per_unit(scene)
+    metres = distance * scene_reading.metres_per_unit(scene)
     view = np.array(_pixel_direction(column, row))
-    h0 = scene.atmos.origin_altitude + scene.camera.location.z * sync.metres_per_unit(scene)
+    h0 = scene.atmos.origin_altitude + scene.camera.location.z * scene_reading.metres_per_unit(scene)
     per_pixel = scene.atmos.render_mode == "PER_PIXEL"
     pieces, sun_at = (PER_PIXEL_PIECES, PER_PIXEL_SUN_AT) if per_pixel else (CURVATURE_PIECES, "lower_end")
     return (np.asarray(radiance) * extinction_balanced(h0, view, metres, atmosphere, pieces=pieces)
@@ -600,7 +600,7 @@ def _aircraft_planes(engine: str, quality: str, mode: str):
     scene.atmos.origin_altitude = 2500.0
     sun.rotation_euler = (math.radians(30), 0, math.radians(40))
     bpy.context.view_layer.update()   # the sun's matrix, which the Precise bake reads
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     group = "Atmos Aerial Composite (Per Pixel)" if mode == "PER_PIXEL" else "Atmos Aerial Perspective"
     assert bpy.data.node_groups[group]["atmos_features"].endswith(f"+{quality.lower()}")
     return scene
@@ -634,13 +634,13 @@ def _expected_precise(scene, radiance, distance: float, column: int, row: int) -
     baked again here for the scene's camera and sun, multiple scattering off as by default)."""
     from atmos_addon.physics.precise import bake_tile, evaluate
 
-    atmosphere = sync.atmosphere_from_settings(scene.atmos)
-    sun_dir, _ = sync.sun_direction(scene)
-    altitude = scene.atmos.origin_altitude + scene.camera.location.z * sync.metres_per_unit(scene)
+    atmosphere = settings_io.atmosphere_from_settings(scene.atmos)
+    sun_dir, _ = scene_reading.sun_direction(scene)
+    altitude = scene.atmos.origin_altitude + scene.camera.location.z * scene_reading.metres_per_unit(scene)
     tile = bake_tile(atmosphere, altitude, math.asin(sun_dir[2]), ground_albedo=tuple(scene.atmos.ground_albedo),
                      multiple_scattering=bool(scene.atmos.multiple_scattering))
     view = np.array(_pixel_direction(column, row))
-    f_ex, l_in = evaluate(tile, view, sun_dir, distance * sync.metres_per_unit(scene), atmosphere, np.float64)
+    f_ex, l_in = evaluate(tile, view, sun_dir, distance * scene_reading.metres_per_unit(scene), atmosphere, np.float64)
     return np.asarray(radiance) * f_ex + l_in
 
 

@@ -23,7 +23,7 @@ import pytest
 from mathutils import Vector
 
 import atmos_addon
-from atmos_addon.blender import effect
+from atmos_addon.blender import orchestrator
 from render_utils import fast_segment, render_exr
 
 EEVEE = "BLENDER_EEVEE" if bpy.app.version >= (5, 0, 0) else "BLENDER_EEVEE_NEXT"
@@ -155,7 +155,7 @@ def test_eevee_checker_cutout_shows_the_far_wall_atmosphere_in_its_holes(tmp_pat
     _emissive_wall()
     _checker_card()
     scene.atmos.sky_enabled = False
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     pixels = _render(scene, tmp_path / "eevee_checker.exr")
     # the card spans columns 4-27 and rows 0-15 (its half size is 0.75 of the half view width); cell centres:
     holes = [(10, 4), (21, 11)]   # bottom-left and top-right quarters

@@ -5,7 +5,7 @@ Renders are tiny (32 x 16 px) and use emissive planes of known radiance L0, as t
 test does, so every pixel has an expected value from :mod:`atmos_addon.physics`: F_ex L0 + L_in for a plane
 seen directly, and F_1 (F_2 L0 + L_2) + L_1 for a plane seen in a perfect mirror (segment 1 camera -> mirror,
 segment 2 mirror -> plane). In-Render mode is held to 0.2 % of those; the sky it shows to the same 0.5 % of
-the Compositor-mode sky; its noise to 5 % of the same render without the effect. Removal must give the
+the Compositor-mode sky; its noise to 5 % of the same render without the orchestrator. Removal must give the
 scene back exactly.
 """
 
@@ -21,7 +21,7 @@ from mathutils import Vector
 
 import atmos_addon
 import atmos_addon.api
-from atmos_addon.blender import effect, in_render, materials, sync
+from atmos_addon.blender import in_render, materials, orchestrator, scene_reading, settings_io
 from atmos_addon.physics import sun_irradiance_ground
 from atmos_addon.physics.sky import aerial_distance_clamped, dome_distance_approx, extinction_layered, \
     inscattering_layered
@@ -132,7 +132,7 @@ def test_in_render_parity_direct_and_mirrored(tmp_path: Path) -> None:
     scene.atmos.sky_enabled = False
     scene.atmos.render_mode = "IN_RENDER"
     view, mirror_point, normal, reflected = _build_planes(scene)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert in_render.is_installed(scene)
     pixels = _render(scene, tmp_path, "in_render")
     for name, radiance, distance, column, row in DIRECT:
@@ -162,11 +162,11 @@ def test_in_render_parity_direct_and_mirrored(tmp_path: Path) -> None:
 
 def _dome_segment(scene, direction, distance: float) -> tuple[np.ndarray, np.ndarray]:
     """(F_ex, L_in) of a segment with the virtual-dome clamp b_i = min(s, R_i(v)) (the model both modes use)."""
-    atmosphere = sync.atmosphere_from_settings(scene.atmos)
-    sun_dir, _ = sync.sun_direction(scene)
+    atmosphere = settings_io.atmosphere_from_settings(scene.atmos)
+    sun_dir, _ = scene_reading.sun_direction(scene)
     e_sun = sun_irradiance_ground(math.asin(sun_dir[2]), atmosphere)
     v = np.asarray(direction, dtype=float)
-    b_rayleigh, b_mie = aerial_distance_clamped(distance * sync.metres_per_unit(scene), math.asin(v[2]), atmosphere,
+    b_rayleigh, b_mie = aerial_distance_clamped(distance * scene_reading.metres_per_unit(scene), math.asin(v[2]), atmosphere,
                                                 0.0, dome_distance_approx)
     return (extinction_layered(b_rayleigh, b_mie, atmosphere),
             inscattering_layered(b_rayleigh, b_mie, float(v @ sun_dir), atmosphere, e_sun))
@@ -214,7 +214,7 @@ def test_reflections_anywhere_see_the_cameras_sky(tmp_path: Path) -> None:
     _quad("Far plane", emission_material("Far plane", REFLECTED_RADIANCE), view * 500.0 + out * 40_000.0, -out,
           2000.0)
     cases.append(("near mirror, plane 40 km beyond it", 4, 8, view, 500.0, (out, 40_000.0)))
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert in_render.is_installed(scene)
     pixels = _render(scene, tmp_path, "reflections")
     for name, column, row, view, distance, reflected in cases:
@@ -235,7 +235,7 @@ def test_in_render_sky_equals_the_compositor_sky(tmp_path: Path) -> None:
     scene, sun = _scene()
     sun.rotation_euler = (math.radians(80.0), 0.0, math.radians(180.0))  # 10 degrees up, in front: the Mie halo
     scene.camera.rotation_euler = (math.radians(95.0), 0.0, 0.0)  # from the horizon up to 10 degrees
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     compositor_sky = _render(scene, tmp_path, "compositor_sky")
     scene.atmos.render_mode = "IN_RENDER"
     assert in_render.is_installed(scene)
@@ -292,7 +292,7 @@ def test_in_render_adds_no_noise(tmp_path: Path) -> None:
     scene = _noise_scene()
     plain = _noise(scene, tmp_path, "plain")
     scene.atmos.render_mode = "IN_RENDER"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     f_ex, _ = _segment(scene, (0.0, 1.0, 0.0), 1000.0)
     hazed = _noise(scene, tmp_path, "hazed") / f_ex
     ratio = hazed / plain
@@ -337,7 +337,7 @@ def test_in_render_removal_restores_the_scene_exactly() -> None:
     scene.camera.data.clip_end = 1000.0
     before = _file_snapshot(scene)
     scene.atmos.render_mode = "IN_RENDER"
-    report = effect.enable_effect(scene)
+    report = orchestrator.enable_effect(scene)
     assert in_render.is_installed(scene)
     assert len(report.managed) == 6
     domes = [o for o in bpy.data.objects if o.name.startswith("Atmos Dome")]
@@ -352,7 +352,7 @@ def test_in_render_removal_restores_the_scene_exactly() -> None:
     ours = next(n for n in tree.nodes if n.get(materials.TAG) == in_render.OUTPUT_TAG)
     assert ours.is_active_output and not extra.is_active_output
     assert any(n.get(materials.TAG) for n in scene.world.node_tree.nodes)
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert _file_snapshot(scene) == before
 
 
@@ -360,7 +360,7 @@ def test_switching_modes_and_engines() -> None:
     scene, _sun = _scene()
     _build_planes(scene)
     before = _file_snapshot(scene)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert not in_render.is_installed(scene)
     scene.atmos.render_mode = "IN_RENDER"  # the update callback switches
     assert in_render.is_installed(scene)
@@ -374,7 +374,7 @@ def test_switching_modes_and_engines() -> None:
     assert in_render.is_installed(scene)
     scene.atmos.render_mode = "COMPOSITOR"
     assert not in_render.is_installed(scene)
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     scene.render.engine = "CYCLES"
     assert _file_snapshot(scene) == before
 
@@ -384,7 +384,7 @@ def test_in_render_file_renders_the_same_without_the_addon(tmp_path: Path) -> No
     scene.cycles.max_bounces = scene.cycles.glossy_bounces = 2
     _build_planes(scene)
     scene.atmos.render_mode = "IN_RENDER"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     with_addon = _render(scene, tmp_path, "with")
     path = tmp_path / "farm.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
@@ -412,8 +412,8 @@ def test_transparent_bounces_come_back_even_at_blenders_limit() -> None:
     _build_planes(scene)
     scene.cycles.transparent_max_bounces, scene.cycles.min_transparent_bounces = 1022, 3
     scene.atmos.render_mode = "IN_RENDER"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert (scene.cycles.transparent_max_bounces, scene.cycles.min_transparent_bounces) == \
         (1024, 3 + in_render.DOME_CROSSINGS)
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert (scene.cycles.transparent_max_bounces, scene.cycles.min_transparent_bounces) == (1022, 3)

@@ -25,7 +25,7 @@ import pytest
 
 import atmos_addon
 from atmos_addon import cli, plan, presets
-from atmos_addon.blender import facts, in_render, materials, sync
+from atmos_addon.blender import facts, handlers, in_render, materials
 from atmos_addon.physics import sun_irradiance_ground
 from atmos_addon.physics.aerial_perspective import inscattering
 from atmos_addon.physics.sky import dome_distance
@@ -421,18 +421,18 @@ def test_osl_renders_the_haze_in_render_and_says_so(tmp_path):
 
 def test_switching_osl_switches_the_mode_and_back():
     """Toggling OSL on an enabled scene switches it to In-Render and back (in the interface the message bus calls
-    :func:`sync.follow_render_settings` on the toggle; headless it is called here, as the bus does not run)."""
+    :func:`handlers.follow_render_settings` on the toggle; headless it is called here, as the bus does not run)."""
     scene = new_user_scene(16, 8)
     target(scene, "Grey", material_variant("emission 0.5"), 3000.0, 0.0, 5.0)
     scene.render.engine = "CYCLES"
     report = atmos_addon.api.enable(scene, preset="clear")
     assert not in_render.is_installed(scene) and not any("Open Shading" in line for line in report.messages)
     scene.cycles.shading_system = True
-    sync.follow_render_settings()
+    handlers.follow_render_settings()
     assert in_render.is_installed(scene)
     assert plan.NOTE_OSL in facts.plan_of(scene).notes
     scene.cycles.shading_system = False
-    sync.follow_render_settings()
+    handlers.follow_render_settings()
     assert not in_render.is_installed(scene) and facts.plan_of(scene).notes == ()
     assert any(n.get(materials.TAG) == 1 for n in bpy.data.materials["emission 0.5"].node_tree.nodes)
 

@@ -15,7 +15,7 @@ import bpy
 import pytest
 
 import atmos_addon
-from atmos_addon.blender import effect, group_integrity, materials, sync
+from atmos_addon.blender import group_integrity, materials, orchestrator, sync
 
 
 @pytest.fixture(autouse=True)
@@ -52,7 +52,7 @@ def _enabled_scene(n_materials: int = 2, sky: bool = True):
     scene.atmos.sky_enabled = sky
     for index in range(n_materials):
         _mesh_object(f"Obj{index}", _material(f"Mat{index}"))
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     bpy.context.view_layer.update()
     return scene
 
@@ -169,7 +169,7 @@ def test_a_second_scene_in_another_mode_is_not_an_edit() -> None:
     second.camera = first.camera
     second.collection.objects.link(bpy.data.objects["Obj0"])
     second.atmos.render_mode = "PER_PIXEL"
-    effect.enable_effect(second)
+    orchestrator.enable_effect(second)
     bpy.context.view_layer.update()
     assert bpy.data.node_groups[group_integrity.SURFACE]["atmos_evaluations"] == "COMPOSITOR,PER_PIXEL"
     assert group_integrity.edited_groups(force=True) == []
@@ -209,7 +209,7 @@ def test_appended_objects_are_picked_up_and_linked_materials_are_reported(tmp_pa
     with bpy.data.libraries.load(str(appended_file), link=False) as (data_from, data_to):
         data_to.objects = ["FromB"]
     scene.collection.objects.link(data_to.objects[0])
-    report = effect.refresh_effect(scene)
+    report = orchestrator.refresh_effect(scene)
     appended = bpy.data.materials["MatB"]
     assert appended.library is None
     assert materials.is_injected(appended)
@@ -222,7 +222,7 @@ def test_appended_objects_are_picked_up_and_linked_materials_are_reported(tmp_pa
     bpy.context.view_layer.update()  # the depsgraph handler's pass must not fail either
     linked = linked_object.material_slots[0].material
     assert linked.library is not None
-    report = effect.refresh_effect(scene)
+    report = orchestrator.refresh_effect(scene)
     reasons = dict(report.skipped)
     assert "MatC" in reasons, report.skipped
     reason = reasons["MatC"]
@@ -231,7 +231,7 @@ def test_appended_objects_are_picked_up_and_linked_materials_are_reported(tmp_pa
     assert [item.name for item in scene.atmos.skipped_materials] == ["MatC"]
     assert materials.is_injected(bpy.data.materials["Mat0"]) and materials.is_injected(appended)
 
-    effect.disable_effect(scene)  # nothing fails on the linked material; local ones are stripped
+    orchestrator.disable_effect(scene)  # nothing fails on the linked material; local ones are stripped
     assert not materials.is_injected(appended)
     assert not materials.is_injected(linked)
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import atmos_addon
-from atmos_addon.blender import effect, in_render, quality_choice
+from atmos_addon.blender import in_render, orchestrator, quality_choice
 from atmos_addon.physics.balanced import (CURVATURE_PIECES, PER_PIXEL_PIECES, PER_PIXEL_SUN_AT,
                                           sun_optical_depths_ground)
 from atmos_addon.physics.quality import SceneSummary
@@ -58,7 +58,7 @@ def test_node_and_physics_piece_counts_agree():
 
 def test_quality_switch_edits_the_same_group_and_materials_keep_it():
     scene = _scene()
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     tree = bpy.data.node_groups[GROUP]
     assert tree["atmos_features"] == "rayleigh+mie+abs" and scene.atmos.status_quality.startswith("Fast")
     groups_before = len(bpy.data.node_groups)
@@ -73,7 +73,7 @@ def test_quality_switch_edits_the_same_group_and_materials_keep_it():
     assert any(_uses(n.node_tree, tree) for n in users)
     scene.atmos.quality = "FAST"
     assert bpy.data.node_groups[GROUP]["atmos_features"] == "rayleigh+mie+abs"
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     for name in ("atmos_origin_altitude", "atmos_sun_optical_depth_rayleigh", "atmos_sun_optical_depth_mie"):
         assert name not in scene
 
@@ -96,7 +96,7 @@ def _uses(tree, target) -> bool:
 def test_balanced_parameters_follow_the_sun_and_the_origin_altitude():
     scene = _scene()
     scene.atmos.quality = "BALANCED"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     scene.atmos.origin_altitude = 1500.0
     assert scene["atmos_origin_altitude"] == pytest.approx(1500.0)
     sun = bpy.data.objects["Sun"]
@@ -104,7 +104,7 @@ def test_balanced_parameters_follow_the_sun_and_the_origin_altitude():
         sun.rotation_euler = (math.radians(tilt), 0.0, 0.0)
         bpy.context.view_layer.update()
         elevation = math.radians(90.0 - tilt)
-        tau_r, tau_m = sun_optical_depths_ground(elevation, atmos_addon.blender.sync.atmosphere_of(scene))
+        tau_r, tau_m = sun_optical_depths_ground(elevation, atmos_addon.blender.scene_reading.atmosphere_of(scene))
         np.testing.assert_allclose(scene["atmos_sun_optical_depth_rayleigh"], np.minimum(tau_r, 50.0), rtol=1e-6)
         np.testing.assert_allclose(scene["atmos_sun_optical_depth_mie"], np.minimum(tau_m, 50.0), rtol=1e-6)
         assert np.all(np.isfinite(scene["atmos_sun_optical_depth_mie"]))
@@ -113,7 +113,7 @@ def test_balanced_parameters_follow_the_sun_and_the_origin_altitude():
 def test_auto_picks_balanced_for_a_drone_and_fast_when_the_tolerance_allows():
     scene = _scene(camera_z=2000.0)
     scene.atmos.quality = "AUTO"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert scene.atmos.auto_level == "balanced"
     assert bpy.data.node_groups[GROUP]["atmos_features"].endswith("+balanced")
     assert "Auto chose Balanced" in scene.atmos.status_quality and "drone" in scene.atmos.status_quality
@@ -151,7 +151,7 @@ def test_in_render_mode_builds_fast_segments_and_says_so():
     scene.render.engine = "CYCLES"
     scene.atmos.render_mode = "IN_RENDER"
     scene.atmos.quality = "BALANCED"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert in_render.is_installed(scene)
     assert "In-Render mode applies Fast" in scene.atmos.status_quality
     stamped = [t.get("atmos_features", "") for t in bpy.data.node_groups]
@@ -170,7 +170,7 @@ def test_precise_bakes_follows_the_sun_and_camera_and_cleans_up():
         DEFAULT_SHAPE.altitudes, DEFAULT_SHAPE.azimuths, DEFAULT_SHAPE.distances)
     scene = _scene(camera_z=300.0)
     scene.atmos.quality = "PRECISE"
-    report = effect.enable_effect(scene)
+    report = orchestrator.enable_effect(scene)
     assert any("baked 1 table tile" in message for message in report.messages), report.messages
     image = bpy.data.images[precise_nodes.IMAGE_NAME]
     assert image.packed_file is not None and tuple(image.size) == (DEFAULT_SHAPE.width, DEFAULT_SHAPE.altitudes)
@@ -201,6 +201,6 @@ def test_precise_bakes_follows_the_sun_and_camera_and_cleans_up():
     assert not any(name in scene for name in PRECISE_PARAMETER_NAMES)
     scene.atmos.quality = "PRECISE"
     assert precise_nodes.IMAGE_NAME in bpy.data.images
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert precise_nodes.IMAGE_NAME not in bpy.data.images
     assert not any(name in scene for name in PRECISE_PARAMETER_NAMES)

@@ -77,13 +77,13 @@ def test_operators_enable_and_disable_with_undo() -> None:
 def test_settings_round_trip_an_atmosphere_within_float32() -> None:
     """Every Atmosphere field survives settings (float32 properties): the Mars preset comes back within 1e-6."""
     from atmos_addon import presets
-    from atmos_addon.blender import settings_io
+    from atmos_addon.blender import orchestrator, settings_io
 
     atmos_addon.register()
     try:
         scene = bpy.context.scene
         mars = presets.load("mars").atmosphere
-        settings_io.apply_atmosphere(scene, mars)
+        orchestrator.apply_atmosphere(scene, mars)
         back = settings_io.atmosphere_from_settings(scene.atmos)
         for field in ("rayleigh_scattering", "mie_scattering", "mie_absorption", "mie_g", "sun_irradiance_top",
                       "wavelengths_nm"):

@@ -24,7 +24,7 @@ import pytest
 
 import atmos_addon
 from atmos_addon import plan
-from atmos_addon.blender import compositor, effect, materials, sync
+from atmos_addon.blender import compositor, materials, orchestrator, scene_reading, sun_bake
 
 import render_utils
 from render_utils import snapshot_tree as snapshot
@@ -187,7 +187,7 @@ def test_save_and_reopen_keeps_the_effect_and_load_post_resyncs(tmp_path: Path) 
     before_compositor = compositor_state(scene)
     scene.atmos.mie_scattering_per_km = (0.05, 0.06, 0.07)
     scene.atmos.distance_scale = 3.0
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     settings = {name: tuple(getattr(scene.atmos, name)) if hasattr(getattr(scene.atmos, name), "__len__")
                 else getattr(scene.atmos, name)
                 for name in ("mie_scattering_per_km", "distance_scale", "rayleigh_scattering_per_km", "mie_g")}
@@ -226,7 +226,7 @@ def test_save_and_reopen_keeps_the_effect_and_load_post_resyncs(tmp_path: Path) 
     bpy.context.view_layer.update()  # fires depsgraph_update_post headless
     np.testing.assert_allclose(scene["atmos_sun_direction"], lamp_direction(sun), atol=1e-6)
 
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     for name, shot in before_materials.items():
         assert snapshot(bpy.data.materials[name].node_tree) == shot, name
     assert compositor_state(scene) == before_compositor
@@ -277,7 +277,7 @@ def test_farm_render_without_the_addon_matches(tmp_path: Path, quality: str) -> 
     near.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
     far = mesh_object("Far", user_material("Far"), location=(800.0, 6000.0, 0.0), half_size=900.0)
     far.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     session = render_utils.render_to_array(scene)
     scene.render.use_compositing = False
     raw = render_utils.render_to_array(scene)
@@ -362,7 +362,7 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
     scene = bpy.context.scene
     scene.atmos.quality = "PRECISE"
     _three_frames_of_a_setting_sun(scene, climbing_camera=True)
-    report = effect.enable_effect(scene)
+    report = orchestrator.enable_effect(scene)
     assert any("baked 3 table tiles" in message for message in report.messages), report.messages
     image = bpy.data.images[precise_nodes.IMAGE_NAME]
     assert image.packed_file is not None and tuple(image.size) == (precise_nodes.DISTANCES * (
@@ -386,7 +386,7 @@ def test_farm_renders_the_per_pixel_mode_of_a_setting_sun(quality: str, tmp_path
     scene.atmos.render_mode = "PER_PIXEL"
     scene.atmos.quality = quality
     _three_frames_of_a_setting_sun(scene, climbing_camera=quality != "FAST")
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     node = compositor._current_tree(scene).nodes[compositor.COMPOSITE_NODE]
     session = {}
     for frame in (1, 3):
@@ -406,14 +406,14 @@ def test_edits_after_enabling_an_animated_sun_are_baked_and_reach_the_farm(tmp_p
     """With an animated sun, every frame's sun parameters are keys. A slider moved, a sun key edited and a longer
     frame range after enabling re-bake them (the keys of before would otherwise override the slider at every other
     frame and in renders); only the sun's parameters are keyed; a farm renders the edited animation."""
-    from atmos_addon.blender import sun_lamp as lamp_module
+    from atmos_addon.blender import orchestrator, scene_reading
     from atmos_addon.physics import sun_irradiance_ground
 
     scene = bpy.context.scene
     _three_frames_of_a_setting_sun(scene, climbing_camera=False)
-    effect.enable_effect(scene)
-    sun = sync.sun_object(scene)
-    keyed = {c.data_path for c in lamp_module._baked_fcurves(scene)}
+    orchestrator.enable_effect(scene)
+    sun = scene_reading.sun_object(scene)
+    keyed = {c.data_path for c in sun_bake.baked_fcurves(scene)}
     assert keyed == {'["atmos_sun_direction"]', '["atmos_sun_irradiance"]', '["atmos_sun_optical_depth_rayleigh"]',
                      '["atmos_sun_optical_depth_mie"]'}
 
@@ -421,7 +421,7 @@ def test_edits_after_enabling_an_animated_sun_are_baked_and_reach_the_farm(tmp_p
         scene.frame_set(frame)
         direction = lamp_direction(sun)
         np.testing.assert_allclose(scene["atmos_sun_direction"], direction, atol=1e-6)
-        atmosphere = sync.atmosphere_of(scene)
+        atmosphere = scene_reading.atmosphere_of(scene)
         np.testing.assert_allclose(scene["atmos_beta_mie"], atmosphere.mie_scattering, rtol=1e-6)
         expected = sun_irradiance_ground(math.asin(direction[2]), atmosphere, 0.0,
                                          0.5 * scene.atmos.sun_angular_diameter)
@@ -437,8 +437,8 @@ def test_edits_after_enabling_an_animated_sun_are_baked_and_reach_the_farm(tmp_p
     assert_frame_follows_the_settings(3)
     scene.frame_end = 4                                        # a longer range
     bpy.context.view_layer.update()
-    assert all(len(c.keyframe_points) == 4 for c in lamp_module._baked_fcurves(scene))
-    assert lamp_module.is_bake_current(scene)
+    assert all(len(c.keyframe_points) == 4 for c in sun_bake.baked_fcurves(scene))
+    assert sun_bake.is_bake_current(scene)
     session = {}
     for frame in (1, 3):
         scene.frame_set(frame)
@@ -468,7 +468,7 @@ def test_every_view_layer_gets_the_atmosphere_and_disable_restores_them() -> Non
     before = snapshot(tree)
     aovs_before = {layer.name: [aov.name for aov in layer.aovs] for layer in scene.view_layers}
 
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     for layer in scene.view_layers:
         names = {aov.name for aov in layer.aovs}
         assert {name for name, _ in plan.AOVS["COMPOSITOR"]} <= names, layer.name
@@ -480,7 +480,7 @@ def test_every_view_layer_gets_the_atmosphere_and_disable_restores_them() -> Non
     hazed = render_utils.render_to_array(scene)
     assert np.all(np.isfinite(hazed))
 
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert snapshot(tree) == before
     assert {layer.name: [aov.name for aov in layer.aovs] for layer in scene.view_layers} == aovs_before
     plain = render_utils.render_to_array(scene)
@@ -498,10 +498,10 @@ def test_enable_then_disable_restores_everything_and_leaves_no_orphans() -> None
     groups_before = sorted(g.name for g in bpy.data.node_groups)
     before = {m.name: snapshot(m.node_tree) for m in mats}
     before_compositor = compositor_state(scene)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert all(materials.is_injected(m) for m in mats)
     assert materials.SURFACE_GROUP in bpy.data.node_groups
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert {m.name: snapshot(m.node_tree) for m in mats} == before
     assert compositor_state(scene) == before_compositor
     assert sorted(g.name for g in bpy.data.node_groups) == groups_before
@@ -510,13 +510,13 @@ def test_enable_then_disable_restores_everything_and_leaves_no_orphans() -> None
 
 def test_renaming_or_deleting_sun_camera_world_gives_status_not_exception() -> None:
     scene, sun, mats = small_scene()
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     scene.atmos.sun_object = sun
 
     sun.name = "Sol"
     bpy.context.view_layer.update()
     assert "'Sol'" in scene.atmos.status_sun
-    report = effect.refresh_effect(scene)
+    report = orchestrator.refresh_effect(scene)
     assert "'Sol'" in scene.atmos.status_sun and report.messages
 
     lamp_data = sun.data
@@ -524,24 +524,24 @@ def test_renaming_or_deleting_sun_camera_world_gives_status_not_exception() -> N
     bpy.data.lights.remove(lamp_data)
     bpy.context.view_layer.update()
     assert "no sun lamp" in scene.atmos.status_sun.lower()
-    np.testing.assert_allclose(scene["atmos_sun_direction"], sync.DEFAULT_SUN_DIRECTION, atol=1e-6)
+    np.testing.assert_allclose(scene["atmos_sun_direction"], scene_reading.DEFAULT_SUN_DIRECTION, atol=1e-6)
 
     scene.camera.name = "Renamed Camera"
-    effect.refresh_effect(scene)
+    orchestrator.refresh_effect(scene)
     camera = scene.camera
     bpy.data.objects.remove(camera)
     assert scene.camera is None
     bpy.context.view_layer.update()
-    report = effect.refresh_effect(scene)
+    report = orchestrator.refresh_effect(scene)
     assert report.messages and scene.atmos.status_materials
 
     bpy.data.worlds.remove(scene.world)
     bpy.context.view_layer.update()
-    report = effect.refresh_effect(scene)
-    sync.sync_scene(scene)
+    report = orchestrator.refresh_effect(scene)
+    orchestrator.update(scene)
     assert report.messages and scene.atmos.status_sun
     assert all(materials.is_injected(m) for m in mats)
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
 
 
 # -- user edits to managed materials -------------------------------------------------------------
@@ -550,7 +550,7 @@ def test_renaming_or_deleting_sun_camera_world_gives_status_not_exception() -> N
 def test_user_edits_after_enabling_survive_refresh_and_disable() -> None:
     scene, _, mats = small_scene()
     material = mats[0]
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     (ours,) = materials.atmos_nodes(material)
     user_xs = [n.location.x + n.width for n in material.node_tree.nodes if n != ours]
     assert ours.location.x > max(user_xs), "the Atmos node sits to the right of the user's nodes"
@@ -565,20 +565,20 @@ def test_user_edits_after_enabling_survive_refresh_and_disable() -> None:
     tree.nodes["Noise Texture"].location = (-900.0, 120.0)
     edited = user_part(material)
 
-    effect.refresh_effect(scene)
+    orchestrator.refresh_effect(scene)
     assert user_part(material) == edited
     assert len(materials.atmos_nodes(material)) == 1
 
     tree.nodes.remove(materials.atmos_nodes(material)[0])  # the user deletes our node: refresh puts it back
-    effect.refresh_effect(scene)
+    orchestrator.refresh_effect(scene)
     assert len(materials.atmos_nodes(material)) == 1 and user_part(material) == edited
 
     copy = material.copy()  # a user duplicate carries our node; disable strips it too
     mesh_object("Copy", copy)
-    effect.refresh_effect(scene)
+    orchestrator.refresh_effect(scene)
     assert len(materials.atmos_nodes(copy)) == 1
 
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert snapshot(material.node_tree) == edited
     assert materials.atmos_nodes(copy) == []
 
@@ -602,8 +602,8 @@ def test_scenes_keep_their_own_settings_and_shared_material_until_last_disable()
     second.atmos.distance_scale = 10.0
     sun_lamp(second, "Second Sun", rotation=(math.radians(80.0), 0.0, 0.0))
 
-    effect.enable_effect(first)
-    effect.enable_effect(second)
+    orchestrator.enable_effect(first)
+    orchestrator.enable_effect(second)
     a, b = parameters(first), parameters(second)
     assert a["atmos_metres_per_unit"] == pytest.approx(1.0) and b["atmos_metres_per_unit"] == pytest.approx(10.0)
     assert not np.allclose(a["atmos_beta_mie"], b["atmos_beta_mie"])
@@ -613,13 +613,13 @@ def test_scenes_keep_their_own_settings_and_shared_material_until_last_disable()
     assert parameters(second) == b
     assert first.atmos.mie_scattering_per_km[0] != pytest.approx(0.2)
 
-    effect.disable_effect(first)
+    orchestrator.disable_effect(first)
     assert materials.is_injected(shared), "the second scene still uses the shared material"
     assert materials.is_injected(only_second)
     assert not materials.is_injected(only_first)
     assert parameters(first) == {} and parameters(second) == b
     assert second.atmos.enabled and compositor.STATE_KEY in second
-    effect.disable_effect(second)
+    orchestrator.disable_effect(second)
     assert not any(materials.is_injected(m) for m in (shared, only_first, only_second))
     assert orphan_groups() == []
 
@@ -645,8 +645,8 @@ def test_hundred_enable_disable_cycles_leave_counts_unchanged() -> None:
     start = _counts()
     before = {m.name: snapshot(m.node_tree) for m in mats}
     for _ in range(100):
-        effect.enable_effect(scene)
-        effect.disable_effect(scene)
+        orchestrator.enable_effect(scene)
+        orchestrator.disable_effect(scene)
     assert _counts() == start
     assert {m.name: snapshot(m.node_tree) for m in mats} == before
 
@@ -674,8 +674,8 @@ def _plane_pixel_scene(scale_length: float):
 @pytest.mark.parametrize("scale_length", [0.001, 1000.0])
 def test_extreme_unit_scale_gives_sensible_metres_and_a_finite_render(scale_length: float) -> None:
     scene = _plane_pixel_scene(scale_length)
-    effect.enable_effect(scene)
-    assert sync.metres_per_unit(scene) == pytest.approx(scale_length)
+    orchestrator.enable_effect(scene)
+    assert scene_reading.metres_per_unit(scene) == pytest.approx(scale_length)
     assert scene["atmos_metres_per_unit"] == pytest.approx(scale_length)
     pixels = render_utils.render_to_array(scene)
     assert np.all(np.isfinite(pixels)) and np.all(pixels[..., :3] >= 0.0)
@@ -688,7 +688,7 @@ def test_extreme_unit_scale_gives_sensible_metres_and_a_finite_render(scale_leng
 
 def test_one_pixel_render_with_the_effect() -> None:
     scene = _plane_pixel_scene(1.0)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     scene.render.resolution_x = scene.render.resolution_y = 1
     pixels = render_utils.render_to_array(scene)
     assert pixels.shape[-1] == 4 and pixels.size >= 4
@@ -698,12 +698,12 @@ def test_one_pixel_render_with_the_effect() -> None:
 def test_empty_scene_enables_with_a_clear_report() -> None:
     scene = bpy.context.scene
     assert len(scene.objects) == 0
-    report = effect.enable_effect(scene)
+    report = orchestrator.enable_effect(scene)
     assert report.managed == [] and report.skipped == [] and report.objects_without_material == []
     assert any(message.startswith("0 material(s)") for message in report.messages)
     assert scene.atmos.status_sun
     assert scene.atmos.status_materials == "0 material(s) with aerial perspective"
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert compositor.STATE_KEY not in scene and len(scene.objects) == 0
 
 
@@ -716,7 +716,7 @@ def test_no_camera_enable_effect_does_not_crash_and_the_api_refuses() -> None:
     with pytest.raises(api.AtmosError, match="camera"):
         api.enable(scene)
     assert not scene.atmos.enabled and not materials.is_injected(material)
-    report = effect.enable_effect(scene)
+    report = orchestrator.enable_effect(scene)
     assert report.managed == ["User"] and materials.is_injected(material)
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert not materials.is_injected(material)

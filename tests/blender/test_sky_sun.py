@@ -21,7 +21,7 @@ import pytest
 
 import atmos_addon
 import render_utils as ru
-from atmos_addon.blender import effect, sun_lamp, sync, world
+from atmos_addon.blender import orchestrator, scene_reading, sun_bake, sun_lamp, world
 from atmos_addon.physics import Atmosphere, sun_color_and_strength, sun_irradiance_ground
 from atmos_addon.physics.sky import (CHAPMAN_APPROX_P, SUN_LIMB_DARKENING, aerial_distance_clamped,
                                      dome_distance_approx, elevation_of, inscattering_layered, sky_radiance)
@@ -305,11 +305,11 @@ def test_installed_sky_lights_with_the_table_and_shows_the_analytic_sky(addon, e
     and leave the camera's sky pixels exactly as they were."""
     scene = _world_lit_plane_scene(engine)
     scene.atmos.drive_sun_lamp = False  # no lamp: the world is the only light
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     scene.render.use_compositing = False
     assert not any(obj.type == "LIGHT" for obj in scene.objects)
     lighting = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.LIGHTING_TAG)
-    assert lighting.node_tree[sky_lighting.TABLE_KEY] == world._table_key(sync.atmosphere_of(scene))
+    assert lighting.node_tree[sky_lighting.TABLE_KEY] == world._table_key(scene_reading.atmosphere_of(scene))
     lit = ru.render_to_array(scene)[..., :3].mean(axis=(0, 1))
     camera = scene.camera
     camera.location = (0.0, 0.0, 20.0)
@@ -327,7 +327,7 @@ def test_installed_sky_lights_with_the_table_and_shows_the_analytic_sky(addon, e
         assert np.all(unlit < 1e-3 * lit)  # every light sample and escaping ray read it
     else:
         np.testing.assert_allclose(unlit, lit, rtol=1e-6)  # Eevee renders the analytic sky only (world.py)
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert not any(sky_lighting.is_sky_lighting_group(g) for g in bpy.data.node_groups)
 
 
@@ -407,7 +407,7 @@ def test_precise_level_shows_and_lights_with_the_precise_sky(addon):
     scene = _world_lit_plane_scene("CYCLES")
     scene.atmos.drive_sun_lamp = False
     scene.atmos.quality = "PRECISE"
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     scene.render.use_compositing = False
     sky = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.SKY_NODE_TAG)
     assert sky.node_tree.get("atmos_features", "").endswith("+precise+ground")
@@ -425,7 +425,7 @@ def test_precise_level_shows_and_lights_with_the_precise_sky(addon):
     assert mix.inputs[1].links[0].from_node.get("atmos_tag") == world.LIGHTING_BACKGROUND_TAG
     assert sky.node_tree.get("atmos_features", "") == "rayleigh+mie+abs+ground"
     assert "Atmos Precise Table" not in bpy.data.images
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert not any(g.name.startswith("Atmos Sky") for g in bpy.data.node_groups)
 
 
@@ -447,14 +447,14 @@ def test_sun_angles_round_trip(addon):
         sun_lamp.set_sun_angles(scene, e, a)
         assert tuple(lamp.rotation_euler) == pytest.approx((math.pi / 2 - e, 0.0, math.pi - a), abs=1e-6)
         bpy.context.view_layer.update()
-        direction, _ = sync.sun_direction(scene)
+        direction, _ = scene_reading.sun_direction(scene)
         np.testing.assert_allclose(direction, _sun(elevation, azimuth), atol=1e-6)
         assert sun_lamp.sun_angles(scene) == pytest.approx((e, a), abs=1e-5)
         assert scene.atmos.sun_elevation == pytest.approx(e, abs=1e-5)
     scene.atmos.sun_elevation = math.radians(40.0)  # the panel's slider rotates the lamp
     scene.atmos.sun_azimuth = math.radians(120.0)
     bpy.context.view_layer.update()
-    np.testing.assert_allclose(sync.sun_direction(scene)[0], _sun(40.0, 120.0), atol=1e-6)
+    np.testing.assert_allclose(scene_reading.sun_direction(scene)[0], _sun(40.0, 120.0), atol=1e-6)
 
 
 def test_lamp_carries_e_sun_and_follows_the_sun(addon):
@@ -462,7 +462,7 @@ def test_lamp_carries_e_sun_and_follows_the_sun(addon):
     lamp = bpy.data.objects.new("My Sun", bpy.data.lights.new("My Sun", "SUN"))
     scene.collection.objects.link(lamp)
     lamp.data.color, lamp.data.energy, lamp.data.angle = (0.9, 0.8, 0.7), 3.0, 0.1
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     radius = 0.5 * scene.atmos.sun_angular_diameter
     assert scene.atmos.sun_angular_diameter == pytest.approx(math.radians(0.5332), rel=1e-6)
     for elevation in (60.0, 2.0):
@@ -481,7 +481,7 @@ def test_lamp_carries_e_sun_and_follows_the_sun(addon):
     depsgraph_writes = lamp.data.energy
     bpy.context.view_layer.update()
     assert lamp.data.energy == depsgraph_writes
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert tuple(lamp.data.color) == pytest.approx((0.9, 0.8, 0.7)) and lamp.data.energy == pytest.approx(3.0)
     assert lamp.data.angle == pytest.approx(0.1)
 
@@ -507,7 +507,7 @@ def test_world_restored_exactly(addon):
     user_world.cycles.sampling_method = "NONE"
     scene.world = user_world
     before = _world_state(scene)
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert scene.world == user_world and len(world.tagged_nodes(user_world)) == len(world.TAGS)
     output = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld" and "atmos_tag" not in n)
     assert output.inputs["Surface"].links[0].from_node.get("atmos_tag") == world.BACKGROUND_TAG  # Eevee, all rays
@@ -519,20 +519,20 @@ def test_world_restored_exactly(addon):
     # importance sampling was off: switched on, with a coarse map (the sky is smooth)
     assert user_world.cycles.sampling_method == "MANUAL"
     assert user_world.cycles.sample_map_resolution == world.SKY_IMPORTANCE_MAP_RESOLUTION
-    effect.enable_effect(scene)  # idempotent
+    orchestrator.enable_effect(scene)  # idempotent
     assert len(world.tagged_nodes(user_world)) == len(world.TAGS)
     scene.atmos.sky_enabled = False
     assert _world_state(scene) == before
     scene.atmos.sky_enabled = True
     assert len(world.tagged_nodes(user_world)) == len(world.TAGS)
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert _world_state(scene) == before and "atmos_sky" not in scene
     assert not any(g.name.startswith("Atmos Sky") for g in bpy.data.node_groups)  # no orphan group left behind
 
     scene.world = None  # no world: one is created, then removed
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     assert scene.world.name == world.CREATED_WORLD_NAME
-    effect.disable_effect(scene)
+    orchestrator.disable_effect(scene)
     assert scene.world is None and world.CREATED_WORLD_NAME not in bpy.data.worlds
     assert sun_lamp.CREATED_SUN_NAME not in bpy.data.objects  # the lamp enabling created is gone too
 
@@ -576,7 +576,7 @@ def test_animated_sun_renders_the_same_without_the_addon(addon, tmp_path: Path):
     ru.make_plane(scene, "ground", [(-200, -5, -1), (200, -5, -1), (200, 300, -1), (-200, 300, -1)], ground)
     scene.frame_start, scene.frame_end = 1, 5
     sun_lamp.set_sun_angles(scene, math.radians(40.0), math.radians(10.0))
-    lamp = sync.sun_object(scene)
+    lamp = scene_reading.sun_object(scene)
     lamp.keyframe_insert("rotation_euler", frame=1)
     sun_lamp.set_sun_angles(scene, math.radians(3.0), math.radians(60.0))
     lamp.keyframe_insert("rotation_euler", frame=5)
@@ -586,13 +586,13 @@ def test_animated_sun_renders_the_same_without_the_addon(addon, tmp_path: Path):
     scene.cycles.max_bounces = 2
     scene.render.use_compositing = True
     scene.frame_set(1)
-    report = effect.enable_effect(scene)
+    report = orchestrator.enable_effect(scene)
     scene.world.cycles.sample_map_resolution = 16  # importance sampling stays on (the default), small and quick
     assert any("baked" in message for message in report.messages), report.messages
-    fcurves = sun_lamp._baked_fcurves(scene)
+    fcurves = sun_bake.baked_fcurves(scene)
     assert {c.data_path for c in fcurves} >= {'["atmos_sun_direction"]', '["atmos_sun_irradiance"]'}
     assert all(len(c.keyframe_points) == 5 for c in fcurves)
-    assert {c.data_path for c in sun_lamp._baked_fcurves(lamp.data)} == {"color", "energy"}
+    assert {c.data_path for c in sun_bake.baked_fcurves(lamp.data)} == {"color", "energy"}
     ours = {frame: _render_frame(scene, frame) for frame in (1, 5)}
     assert np.abs(ours[1] - ours[5]).max() > 1e-2  # the sun moved
     path = tmp_path / "farm.blend"
@@ -610,4 +610,4 @@ def test_animated_sun_renders_the_same_without_the_addon(addon, tmp_path: Path):
         assert difference <= 1e-4
     # Not animated: a bake writes nothing (and removes the earlier keys).
     lamp.animation_data_clear()
-    assert sun_lamp.bake_sun_animation(scene) == 0 and not sun_lamp._baked_fcurves(scene)
+    assert sun_bake.bake_sun_animation(scene) == 0 and not sun_bake.baked_fcurves(scene)

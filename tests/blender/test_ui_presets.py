@@ -24,7 +24,7 @@ import pytest
 
 import atmos_addon
 from atmos_addon import presets
-from atmos_addon.blender import contact_sheet, effect, preset_ops, registration, settings_io, sync, ui_panel
+from atmos_addon.blender import contact_sheet, orchestrator, preset_ops, registration, scene_reading, settings_io, ui_panel
 
 from render_utils import EEVEE_ENGINE, ENGINES, make_camera, make_plane, render_to_array, set_engine
 
@@ -58,7 +58,7 @@ def add_sun(scene, elevation_deg: float = 40.0):
 
 def sun_elevation_deg(scene) -> float:
     bpy.context.view_layer.update()
-    direction, _ = sync.sun_direction(scene)
+    direction, _ = scene_reading.sun_direction(scene)
     return math.degrees(math.asin(float(direction[2])))
 
 
@@ -112,7 +112,7 @@ def tiny_scene(scene, engine: str, width: int, height: int):
         scene.cycles.samples = 4
         scene.cycles.max_bounces = 2
     scene.atmos.distance_scale = 5.0
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     if scene.world is not None and engine == "CYCLES":
         # the sky world's default importance map (1024 x 512 evaluations of the sky shader) costs ~20 s
         # per render on 2 cores; a coarse map changes nothing these tests look at
@@ -249,7 +249,7 @@ def test_every_panel_draws_for_every_builtin_preset(addon):
     # with a user preset current, edited values, the effect on and a skipped material
     assert bpy.ops.atmos.preset_add(name="Mine") == {"FINISHED"}
     scene.atmos.haze_visibility = 12000.0
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     item = scene.atmos.skipped_materials.add()
     item.name, item.reason = "Odd", "no output node"
     calls = draw_everything(scene)
@@ -279,7 +279,7 @@ def test_the_panel_says_what_the_viewport_shows(addon):
         scene.render.engine, scene.atmos.render_mode = engine, mode
         assert words in ui_panel.viewport_note(scene), (engine, mode, ui_panel.viewport_note(scene))
         assert ("label", ui_panel.viewport_note(scene)) not in draw_everything(scene)   # off: no viewport line
-    effect.enable_effect(scene)
+    orchestrator.enable_effect(scene)
     scene.render.engine, scene.atmos.render_mode = "CYCLES", "COMPOSITOR"
     assert ("label", ui_panel.viewport_note(scene)) in draw_everything(scene)
 
@@ -521,7 +521,7 @@ def test_contact_sheet_operator_runs_synchronously_in_background(addon, tmp_path
     scene = bpy.context.scene
     tiny_scene(scene, "CYCLES", 16, 16)
     bpy.data.objects.remove(scene.objects["Sun"])  # the sheet creates a sun lamp to point, then removes it
-    sync.sync_scene(scene)  # what the depsgraph handler does in the UI
+    orchestrator.update(scene)  # what the depsgraph handler does in the UI
     before = snapshot(scene)
     out = tmp_path / "op.png"
     assert bpy.ops.atmos.contact_sheet(presets="clear, sunset", elevations="30", cell_width=16, cell_height=8,

@@ -20,7 +20,7 @@ import bpy
 import numpy as np
 import pytest
 
-from atmos_addon.blender import materials, sync
+from atmos_addon.blender import materials, scene_reading
 
 from test_robustness import addon  # noqa: F401  (autouse: a factory-fresh file with the add-on registered)
 from test_robustness import (compositor_state, lamp_direction, mesh_object, orphan_groups, small_scene, snapshot,
@@ -89,7 +89,7 @@ def state(scene) -> dict:
 def _fcurves(action):
     if action is None:
         return []
-    return sync.node_groups().parameters._fcurves(action)
+    return scene_reading.groups().parameters.fcurves_of(action)
 
 
 def assert_states_equal(got: dict, want: dict, where: str) -> None:
@@ -99,7 +99,7 @@ def assert_states_equal(got: dict, want: dict, where: str) -> None:
 
 def sun_consistent(scene) -> None:
     """The shader's sun direction is the lamp's (the parameters follow the restored lamp)."""
-    lamp = sync.sun_object(scene)
+    lamp = scene_reading.sun_object(scene)
     np.testing.assert_allclose(scene["atmos_sun_direction"], lamp_direction(lamp), atol=1e-6)
 
 

@@ -1,0 +1,112 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Blender's handlers and message-bus subscriptions: how Atmos follows what the user does outside its panel.
+
+- :func:`on_depsgraph_update`: the sun lamp moved, the camera moved, keys were edited, materials or objects were
+  added, a material was edited, the render engine changed: each the cheap check first, then the orchestrator.
+- :func:`on_load_post`, :func:`on_undo_redo`: the file's data changed under the caches: everything is updated again.
+- :func:`follow_render_settings` (message bus): the engine or Cycles' Open Shading Language changed.
+"""
+
+from __future__ import annotations
+
+import bpy
+from bpy.app.handlers import persistent
+
+from . import group_integrity, materials, orchestrator, precise_tables, sun_bake, sync
+
+
+@persistent
+def on_depsgraph_update(scene, depsgraph) -> None:
+    """Follow the sun lamp and pick up new materials in scenes with the effect on (cheap checks first)."""
+    group_integrity.on_depsgraph_update(scene, depsgraph)  # drops the panel's cached edit check (one flag query)
+    settings = getattr(scene, "atmos", None)
+    if settings is None or not settings.enabled:
+        return
+    if orchestrator.mode_mismatch(scene):  # the render engine or the mode changed: switch Compositor <-> In-Render
+        orchestrator.enable_effect(scene)
+        return
+    if sync.sun_moved(scene):
+        orchestrator.update(scene)
+    elif sync.note_camera(scene):   # the Precise tables follow the camera
+        precise_tables.follow(scene)
+    elif any(depsgraph.id_type_updated(kind) for kind in ("ACTION", "OBJECT", "SCENE")):
+        sun_bake.follow(scene)   # keys edited at other frames, a parent or a target moved, the frame range changed
+    if depsgraph.id_type_updated("MATERIAL"):
+        materials.follow_edits(depsgraph)   # a surface Cycles folds away stays opaque
+    if orchestrator.note_counts(scene):
+        orchestrator.pick_up_new_materials(scene)
+
+
+@persistent
+def on_load_post(*_args) -> None:
+    """After a file loads: rebuild stale node groups and re-sync every scene with the effect on; subscribe to the
+    render settings again (loading a file clears the message bus)."""
+    orchestrator.resync_all()
+    _subscribe()
+
+
+@persistent
+def on_undo_redo(*_args) -> None:
+    """After an undo or redo step, which restores the file's data from memory (memfile undo).
+
+    - Our caches describe the state undone from: they are dropped and every enabled scene re-synced. A step can
+      hold parameters older than its lamp (in the UI a transform pushes its step before the depsgraph handler
+      writes the sun's parameters), which the sun-matrix cache would otherwise take as current.
+    - Blender keeps image buffers across undo, so the Precise table would keep the pixels of the state undone from
+      while its packed data and bake key are restored: its buffer is freed (read again from the packed data)
+      before the re-sync compares bake keys.
+    """
+    precise_tables.free_buffers()
+    orchestrator.resync_all()
+
+
+#: The owner of Atmos' message-bus subscriptions (cleared on unregister, made again after a file loads).
+_MSGBUS_OWNER = object()
+
+
+def follow_render_settings(*_args) -> None:
+    """Switch every enabled scene whose render settings now call for another mode (the engine changed, Cycles'
+    Open Shading Language toggled: :func:`atmos_addon.plan.mode_for`). The message bus calls this when the user
+    changes those settings in the interface; Cycles' settings do not tag the depsgraph, so the depsgraph handler
+    would see the change only at the next edit."""
+    for scene in bpy.data.scenes:
+        if getattr(scene, "atmos", None) is not None and orchestrator.mode_mismatch(scene):
+            orchestrator.enable_effect(scene)
+
+
+def _subscribe() -> None:
+    bpy.msgbus.clear_by_owner(_MSGBUS_OWNER)
+    keys = [(bpy.types.RenderSettings, "engine")]
+    cycles = getattr(bpy.types, "CyclesRenderSettings", None)
+    if cycles is not None:
+        keys.append((cycles, "shading_system"))
+    for key in keys:
+        bpy.msgbus.subscribe_rna(key=key, owner=_MSGBUS_OWNER, args=(), notify=follow_render_settings)
+
+
+HANDLERS = (
+    (bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
+    (bpy.app.handlers.load_post, on_load_post),
+    (bpy.app.handlers.undo_post, on_undo_redo),
+    (bpy.app.handlers.redo_post, on_undo_redo),
+)
+
+
+def add_handlers() -> None:
+    for handler_list, function in HANDLERS:
+        if function not in handler_list:
+            handler_list.append(function)
+    _subscribe()
+
+
+def remove_handlers() -> None:
+    """Remove our handlers, also copies left by an earlier import of this module (add-on reload)."""
+    for handler_list, function in HANDLERS:
+        for registered in list(handler_list):
+            if registered is function or (
+                getattr(registered, "__module__", None) == function.__module__
+                and getattr(registered, "__qualname__", None) == function.__qualname__
+            ):
+                handler_list.remove(registered)
+    bpy.msgbus.clear_by_owner(_MSGBUS_OWNER)
+    orchestrator.forget()

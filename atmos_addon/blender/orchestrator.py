@@ -1,0 +1,352 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The one place that applies a scene's plan: enable, refresh, update after an edit, switch mode, disable.
+
+The operators, the panel's switches, the API, the CLI and the handlers all come here. Enabling asks the plan
+(:func:`.facts.plan_of`) what to build and has each applier build its part: the material group and the nodes in
+every material (:mod:`.materials`, or :mod:`.in_render` in In-Render mode), the compositor (:mod:`.compositor`),
+the sky in the world (:mod:`.world`), the sun lamp (:mod:`.sun_lamp`), the haze domes (:mod:`.in_render`), the
+Precise tables (:mod:`.precise_tables`); then :mod:`.sync` writes the values the built nodes read, and
+:mod:`.sun_bake` keys an animated sun. :func:`update` runs after every settings edit: it rebuilds what the plan no
+longer matches (cheap when everything does) and writes the values. Disabling has every applier remove exactly what
+it added. All of it is idempotent.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import bpy
+
+from . import (compositor, facts, group_integrity, in_render, materials, precise_tables, quality_choice,
+               scene_reading, settings_io, sun_bake, sun_lamp, sync, world)
+
+#: Names of scenes whose ``enabled`` switch this module is setting (its update callback waits).
+_applying: set[str] = set()
+#: Names of scenes whose settings are being written as a batch (their update callbacks wait; one update at the end).
+_batched: set[str] = set()
+#: Per scene: (material count, object count) at the last pass (the depsgraph handler's cheap check for new ones).
+_last_counts: dict[str, tuple[int, int]] = {}
+
+
+@dataclass
+class Report:
+    """What an enable/refresh did: managed materials, skipped ones with the reason, and messages."""
+
+    managed: list[str] = field(default_factory=list)
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+    objects_without_material: list[str] = field(default_factory=list)
+    messages: list[str] = field(default_factory=list)
+
+
+# -- settings written as a batch -----------------------------------------------------------------------
+
+
+def is_batched(scene) -> bool:
+    """True while :func:`batch` holds the scene's updates back."""
+    return scene.name in _batched
+
+
+@contextlib.contextmanager
+def batch(scene) -> Iterator[None]:
+    """Write several settings of ``scene`` with one :func:`update` at the end (when the effect is enabled)."""
+    if scene.name in _batched:
+        yield
+        return
+    _batched.add(scene.name)
+    try:
+        yield
+    finally:
+        _batched.discard(scene.name)
+    if scene.atmos.enabled:
+        update(scene)
+
+
+def apply_atmosphere(scene, atmosphere) -> None:
+    """Write every field of the physics ``atmosphere`` into ``scene.atmos`` (one update at the end)."""
+    with batch(scene):
+        settings_io.write_atmosphere(scene.atmos, atmosphere)
+
+
+# -- the switch ----------------------------------------------------------------------------------------
+
+
+def _set_enabled(scene, value: bool) -> None:
+    """Set ``scene.atmos.enabled`` without re-entering its update callback."""
+    if scene.atmos.enabled != value:
+        _applying.add(scene.name)
+        try:
+            scene.atmos.enabled = value
+        finally:
+            _applying.discard(scene.name)
+
+
+def apply_enabled_state(scene) -> None:
+    """The ``enabled`` update callback: enable or disable to match the switch."""
+    if scene.name in _applying:
+        return
+    if scene.atmos.enabled:
+        enable_effect(scene)
+    else:
+        disable_effect(scene)
+
+
+# -- building what the plan lists ----------------------------------------------------------------------
+
+
+def _status(scene, report: Report) -> None:
+    settings = scene.atmos
+    settings.status_materials = f"{len(report.managed)} material(s) with aerial perspective"
+    settings.status_objects = (
+        f"{len(report.objects_without_material)} object(s) without material: not affected"
+        if report.objects_without_material else ""
+    )
+    settings.skipped_materials.clear()
+    for name, reason in report.skipped:
+        item = settings.skipped_materials.add()
+        item.name = name
+        item.reason = reason
+
+
+def material_group(scene):
+    """Get or (re)build the group the plan gives the scene's materials: the aerial perspective group (Compositor
+    mode) or the "Atmos In-Render Surface" group (In-Render mode). In the Per Pixel mode the compositor group
+    evaluates the atmosphere and the materials need no shader group: the aerial group is returned only when another
+    enabled scene's Compositor mode uses it (None otherwise), so none is built for nothing (at Balanced it is a
+    thousand nodes). Also builds the Per Pixel compositor group and writes the "built" status line."""
+    groups = scene_reading.groups()
+    aerial = groups.aerial_perspective
+    plan = facts.plan_of(scene)
+    features = facts.aerial_features(plan)
+    if plan.mode == "IN_RENDER":
+        group = groups.in_render.ensure_surface_group(features)
+    elif plan.mode == "COMPOSITOR":
+        group = aerial.ensure_aerial_perspective_group(features)
+    else:
+        group = bpy.data.node_groups.get(aerial.GROUP_NAME)
+        if group is None and "COMPOSITOR" in plan.surface_modes:
+            group = aerial.ensure_aerial_perspective_group(features)
+    built = aerial.describe_features(features)
+    if plan.mode == "PER_PIXEL":
+        per_pixel = compositor.ensure_per_pixel_group(features)
+        built = f"{built.split(':')[0]}, per pixel: {len(per_pixel.nodes)} compositor nodes"
+    scene_reading.set_if_changed(scene.atmos, "status_built", built)
+    return group
+
+
+def sky_group(scene):
+    """Get or (re)build the "Atmos Sky" world group for the scene's plan."""
+    return scene_reading.groups().sky.ensure_sky_group(facts.sky_features(facts.plan_of(scene)))
+
+
+def _apply_materials(scene, *, only_new: bool) -> Report:
+    plan = facts.plan_of(scene)
+    if plan.mode == "IN_RENDER":
+        result = in_render.inject_scene(scene, material_group(scene), only_new=only_new)
+    else:
+        result = materials.inject_scene(scene, material_group(scene), only_new=only_new,
+                                        evaluations=plan.surface_modes)
+    report = Report(
+        managed=result.managed,
+        skipped=result.skipped,
+        objects_without_material=result.objects_without_material,
+    )
+    report.messages.append(f"{len(result.managed)} material(s) with aerial perspective")
+    for name, reason in result.skipped:
+        report.messages.append(f"Material '{name}' skipped: {reason}")
+    if result.objects_without_material:
+        report.messages.append(
+            f"{len(result.objects_without_material)} object(s) without material are not affected "
+            "(give them a material to include them)"
+        )
+    return report
+
+
+def mode_mismatch(scene) -> bool:
+    """True when the effect is on in one mode (Compositor or Per Pixel / In-Render) and the scene now asks for the
+    other (Compositor and Per Pixel share the materials' nodes: :func:`.compositor.install` swaps those two)."""
+    return scene.atmos.enabled and in_render.is_installed(scene) != (facts.plan_of(scene).mode == "IN_RENDER")
+
+
+def _ensure_groups(scene) -> None:
+    """Rebuild in place every group the plan lists that is stale for it (cheap when current), and stamp them."""
+    plan = facts.plan_of(scene)
+    material_group(scene)
+    if plan.sky:
+        sky_group(scene)
+        world.update_sky_lighting(scene, facts.sky_features(plan))
+    if in_render.is_installed(scene):
+        scene_reading.groups().in_render.ensure_sky_group(facts.aerial_features(plan))
+    group_integrity.stamp_new()
+
+
+def _drop_tables(scene) -> None:
+    """Remove the Precise tables and their parameters of a scene that left the Precise level."""
+    parameters = scene_reading.groups().parameters
+    if parameters.PRECISE_TILE in scene:
+        precise_tables.remove(scene)
+        for name in parameters.PRECISE_PARAMETER_NAMES:
+            del scene[name]
+
+
+def _follow_tables_and_keys(scene) -> None:
+    """The Precise tables and an animated sun's keys follow the values just written: baked again when their inputs
+    changed (at once in the background, else shortly after the last change); tables of a level left are removed."""
+    if precise_tables.uses_precise(scene):
+        precise_tables.follow(scene)
+    else:
+        _drop_tables(scene)
+    sun_bake.follow(scene)
+
+
+def update(scene) -> None:
+    """After an edit of ``scene``'s settings or its sun: rebuild what the plan no longer matches, write the values,
+    and let the tables and the sun's keys follow. A scene with the effect off only gets its displayed values."""
+    if not scene.atmos.enabled:
+        sync.sync_scene(scene)
+        return
+    if mode_mismatch(scene):   # the mode or the engine changed: Compositor <-> In-Render
+        enable_effect(scene)
+        return
+    _ensure_groups(scene)
+    sync.sync_scene(scene)
+    _follow_tables_and_keys(scene)
+
+
+def enable_effect(scene) -> Report:
+    """Apply aerial perspective to every object of ``scene`` (idempotent), as its plan says: Compositor or Per
+    Pixel mode (AOVs in the materials, a group in the compositor) or In-Render mode (Cycles: dome volumes, emission
+    in the materials, world compensation). When the effect is on in the other mode (the setting or the render
+    engine changed), that mode is removed first."""
+    if mode_mismatch(scene):
+        disable_effect(scene)
+    _set_enabled(scene, True)
+    if precise_tables.uses_precise(scene):
+        scene.view_layers[0].update()   # the tables read the camera's matrix: objects moved by a script since
+    quality_choice.resolve(scene)
+    plan = facts.plan_of(scene)
+    report = _apply_materials(scene, only_new=True)
+    if plan.compositor is not None:
+        report.messages.extend(compositor.install(scene, evaluation=plan.compositor,
+                                                  features=facts.aerial_features(plan)))
+    if plan.sun_lamp:
+        _, lamp_message = sun_lamp.ensure_sun_lamp(scene)
+        report.messages.append(lamp_message)
+    if plan.sky:
+        report.messages.append(world.install_sky(scene, sky_group(scene), facts.sky_features(plan)))
+    _ensure_groups(scene)
+    sync.sync_scene(scene)
+    report.messages.extend(note for note in plan.notes if note not in scene.atmos.status_quality)
+    if plan.mode == "IN_RENDER":
+        report.messages.extend(in_render.install(scene, facts.aerial_features(plan),
+                                                 scene_reading.atmosphere_of(scene),
+                                                 scene_reading.metres_per_unit(scene)))
+    if not sun_bake.is_bake_current(scene):
+        sun_bake.bake_sun_animation(scene)
+    if scene.get(sun_bake.BAKED_KEY) is not None:
+        report.messages.append(f"Animated sun: baked to keyframes for frames {scene.frame_start}-{scene.frame_end}")
+    if precise_tables.uses_precise(scene):
+        precise_tables.bake(scene)   # a no-op when its inputs are those of the last bake
+        report.messages.append(precise_tables.describe())
+    else:
+        _drop_tables(scene)
+    report.messages.append(scene.atmos.status_sun)
+    report.messages.append(scene.atmos.status_quality)
+    _status(scene, report)
+    note_counts(scene)
+    return report
+
+
+def refresh_effect(scene) -> Report:
+    """Pick up materials and objects added since enabling, and re-sync (enables when off)."""
+    return enable_effect(scene)
+
+
+def change_quality(scene) -> None:
+    """The quality settings' update callback (effect on): resolve Auto, rebuild and re-sync, and bake the Precise
+    tables for every frame of an animated camera or sun."""
+    quality_choice.resolve(scene)
+    update(scene)
+    if precise_tables.uses_precise(scene):
+        precise_tables.bake(scene)
+
+
+def apply_sky_state(scene) -> None:
+    """The ``sky_enabled`` update callback (effect on): add or remove the sky in the scene's world."""
+    plan = facts.plan_of(scene)
+    if plan.sky:
+        world.install_sky(scene, sky_group(scene), facts.sky_features(plan))
+        update(scene)
+    else:
+        world.uninstall_sky(scene)
+    in_render.refresh_world(scene, facts.aerial_features(plan))
+
+
+def note_counts(scene) -> bool:
+    """Record the file's material count and the scene's object count; True when they changed since the last call."""
+    counts = (len(bpy.data.materials), len(scene.objects))
+    changed = _last_counts.get(scene.name) != counts
+    _last_counts[scene.name] = counts
+    return changed
+
+
+def pick_up_new_materials(scene) -> None:
+    """Inject materials that appeared since the last pass (the depsgraph handler's cheap path)."""
+    report = _apply_materials(scene, only_new=True)
+    _status(scene, report)
+    group_integrity.stamp_new()
+
+
+def resync_all() -> None:
+    """Drop every cache and update every scene with the effect on (stale node groups are rebuilt): after a file
+    loads, and after an undo or redo step."""
+    forget()
+    group_integrity.invalidate()
+    for scene in bpy.data.scenes:
+        settings = getattr(scene, "atmos", None)
+        if settings is not None and settings.enabled:
+            update(scene)
+            note_counts(scene)
+
+
+def forget(scene_name: str | None = None) -> None:
+    """Drop the cached state of a scene (every scene when ``scene_name`` is None)."""
+    sync.forget(scene_name)
+    if scene_name is None:
+        _last_counts.clear()
+    else:
+        _last_counts.pop(scene_name, None)
+
+
+def _materials_used_by_other_enabled_scenes(scene) -> set[int]:
+    keep: set[int] = set()
+    for other in bpy.data.scenes:
+        if other != scene and getattr(other, "atmos", None) is not None and other.atmos.enabled:
+            keep.update(m.as_pointer() for m in materials.scene_materials(other)[0])
+    return keep
+
+
+def disable_effect(scene) -> list[str]:
+    """Remove everything :func:`enable_effect` added to ``scene``; the names of the stripped materials."""
+    _set_enabled(scene, False)
+    keep = _materials_used_by_other_enabled_scenes(scene)
+    candidates = [m for m in bpy.data.materials if m.as_pointer() not in keep]
+    stripped = materials.remove_all(candidates)
+    materials.remove_surface_group()
+    compositor.uninstall(scene)
+    in_render.uninstall(scene)
+    in_render.remove_unused_groups()
+    world.uninstall_sky(scene)
+    sun_bake.clear_baked_keys(scene)
+    sun_lamp.restore_lamp(scene)
+    scene_reading.groups().parameters.clear_shader_parameters(scene)
+    precise_tables.remove(scene)
+    settings = scene.atmos
+    settings.status_materials = ""
+    settings.status_objects = ""
+    settings.status_sun = ""
+    settings.status_quality = ""
+    settings.skipped_materials.clear()
+    forget(scene.name)
+    return stripped

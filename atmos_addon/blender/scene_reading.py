@@ -1,0 +1,119 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""What the rest of the Blender layer reads off a scene: the sun, its direction, the scale, the atmosphere of the
+settings, whether something moves over time. Reading only: nothing here writes to the scene but the settings'
+status strings (:func:`set_if_changed`).
+"""
+
+from __future__ import annotations
+
+import math
+from types import ModuleType
+
+import numpy as np
+from mathutils import Vector
+
+from .. import import_sibling
+from ..physics import Atmosphere
+from .settings_io import FIELD_MAP
+
+#: Used when the scene has no sun lamp: 45 degrees above the horizon, towards +Y (north in Blender's convention).
+DEFAULT_SUN_DIRECTION = (0.0, math.sqrt(0.5), math.sqrt(0.5))
+
+#: Per scene: (the settings' values, their Atmosphere), reused while the values are unchanged (a cache only).
+_last_atmosphere: dict[str, tuple] = {}
+
+
+def groups() -> ModuleType:
+    """The extension's ``node_groups`` package (imported on first use)."""
+    return import_sibling("node_groups")
+
+
+def sun_object(scene):
+    """The sun lamp that drives the atmosphere: ``scene.atmos.sun_object``, else the first sun lamp in the scene."""
+    chosen = scene.atmos.sun_object
+    if chosen is not None and chosen.type == "LIGHT" and chosen.data.type == "SUN":
+        return chosen
+    for obj in scene.objects:
+        if obj.type == "LIGHT" and obj.data.type == "SUN":
+            return obj
+    return None
+
+
+def direction_of(lamp) -> tuple[np.ndarray, str]:
+    """Unit direction TO the sun of ``lamp`` (None: the default sun) in world space, and a sentence saying where it
+    came from. A sun lamp shines along its local -Z axis, so the direction towards the sun is its local +Z axis."""
+    if lamp is None:
+        return np.array(DEFAULT_SUN_DIRECTION), "No sun lamp: using the default sun 45 degrees above the horizon"
+    axis = lamp.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0))
+    if axis.length == 0.0:
+        return np.array(DEFAULT_SUN_DIRECTION), f"Sun lamp '{lamp.name}' has zero scale: using the default sun"
+    axis.normalize()
+    elevation = math.degrees(math.asin(max(-1.0, min(1.0, axis.z))))
+    return np.array(axis), f"Sun: '{lamp.name}', {elevation:.1f} degrees above the horizon"
+
+
+def sun_direction(scene) -> tuple[np.ndarray, str]:
+    """The unit direction to the scene's sun (:func:`sun_object`) and where it came from (:func:`direction_of`)."""
+    return direction_of(sun_object(scene))
+
+
+def metres_per_unit(scene) -> float:
+    """Metres per Blender unit as the atmosphere sees them (unit scale times the distance scale)."""
+    return float(scene.unit_settings.scale_length) * float(scene.atmos.distance_scale)
+
+
+def atmosphere_with_key(scene) -> tuple[tuple, Atmosphere]:
+    """The settings' atmosphere values (each read once, as a hashable key) and their :class:`Atmosphere` (1/km ->
+    1/m), reused while the values are unchanged."""
+    settings = scene.atmos
+    raw = tuple(getattr(settings, prop) for prop, _, _ in FIELD_MAP)
+    key = tuple(value if isinstance(value, float) else tuple(value) for value in raw)
+    cached = _last_atmosphere.get(scene.name)
+    if cached is not None and cached[0] == key:
+        return key, cached[1]
+    values = {}
+    for (_, field, factor), value in zip(FIELD_MAP, key):
+        array = np.asarray(value, dtype=float) / factor
+        values[field] = array if array.ndim else float(array)
+    atmosphere = Atmosphere(**values)
+    _last_atmosphere[scene.name] = (key, atmosphere)
+    return key, atmosphere
+
+
+def atmosphere_of(scene) -> Atmosphere:
+    """The physics :class:`Atmosphere` of the scene's settings (cached while they are unchanged)."""
+    return atmosphere_with_key(scene)[1]
+
+
+def forget(scene_name: str | None = None) -> None:
+    """Drop the cached atmosphere (of every scene when ``scene_name`` is None)."""
+    if scene_name is None:
+        _last_atmosphere.clear()
+    else:
+        _last_atmosphere.pop(scene_name, None)
+
+
+def set_if_changed(settings, name: str, value) -> None:
+    """Write a setting (a status string) only when it differs: every write re-tags the depsgraph and redraws."""
+    if getattr(settings, name) != value:
+        setattr(settings, name, value)
+
+
+def _animated(idblock) -> bool:
+    animation = getattr(idblock, "animation_data", None)
+    return animation is not None and (animation.action is not None or len(animation.drivers) > 0
+                                      or len(animation.nla_tracks) > 0)
+
+
+def moves_over_time(obj) -> bool:
+    """True if ``obj`` (None: False), or a parent, is animated (action, drivers, NLA) or constrained."""
+    while obj is not None:
+        if _animated(obj) or len(obj.constraints) > 0:
+            return True
+        obj = obj.parent
+    return False
+
+
+def is_sun_animated(scene) -> bool:
+    """True if the sun lamp's direction can change over time: it, or a parent, is animated or constrained."""
+    return moves_over_time(sun_object(scene))

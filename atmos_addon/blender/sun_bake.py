@@ -1,0 +1,258 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Farm-safe sun animation: everything the sun drives, keyed per frame, and kept current as the scene is edited.
+
+A sun lamp that moves over time (its own animation, a parent's, a constraint) changes the shader parameters and the
+lamp's colour and strength every frame. :func:`bake_sun_animation` keys them, one key per frame, so a render
+without the add-on (a farm) evaluates every frame without Python. The keys hold only the sun's own parameters
+(direction, E_sun, its optical depths) and the lamp's colour and strength; a digest of everything they depend on
+(:func:`bake_inputs`) is stored with them, and :func:`follow` bakes again when it changes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import bpy
+import numpy as np
+
+from . import precise_tables, scene_reading, sync
+from .debounce import Debounced
+from .sun_lamp import LAMP_PATHS
+
+#: Scene custom property: the frame range baked, the lamp data whose keys the bake wrote and the inputs' digest.
+BAKED_KEY = "atmos_sun_baked"
+
+
+def _motion_objects(obj) -> list:
+    """``obj``, its parents and its constraints' targets (with theirs): every object whose animation or transform
+    can move it."""
+    found, todo, seen = [], [obj], set()
+    while todo:
+        current = todo.pop()
+        if current is None or current.as_pointer() in seen:
+            continue
+        seen.add(current.as_pointer())
+        found.append(current)
+        todo.append(current.parent)
+        todo.extend(getattr(constraint, "target", None) for constraint in current.constraints)
+    return found
+
+
+def _curve_text(curve) -> str:
+    points = curve.keyframe_points
+    arrays = []
+    for name in ("co", "handle_left", "handle_right"):
+        values = np.empty(2 * len(points))
+        points.foreach_get(name, values)
+        arrays.append(values)
+    digest = hashlib.sha1(np.concatenate(arrays).tobytes()).hexdigest()
+    driver = ""
+    if curve.driver is not None:
+        variables = [(v.name, v.type, [(t.id.name if t.id else "", t.data_path, t.transform_type, t.transform_space)
+                                       for t in v.targets]) for v in curve.driver.variables]
+        driver = f"{curve.driver.type}|{curve.driver.expression}|{variables}"
+    return (f"{curve.data_path}[{curve.array_index}]|{curve.extrapolation}|{curve.mute}|{len(curve.modifiers)}|"
+            f"{[p.interpolation for p in points]}|{digest}|{driver}")
+
+
+#: Object channels that can turn a lamp (or a parent) when they are not animated.
+_STATIC_CHANNELS = ("location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle", "scale",
+                    "delta_location", "delta_rotation_euler", "delta_rotation_quaternion", "delta_scale")
+
+
+def _own_fcurves(animation) -> list:
+    """The F-curves of the action's slot this ID uses (Blender 4.4+ actions can hold several IDs' curves: the lamp's
+    light data keys land in the lamp object's action), or all of a legacy action's."""
+    action = animation.action
+    if action is None:
+        return []
+    slot = getattr(animation, "action_slot", None)
+    if slot is None or not hasattr(action, "layers"):
+        return list(getattr(action, "fcurves", ()))
+    curves = []
+    for layer in action.layers:
+        for strip in layer.strips:
+            bag = strip.channelbag(slot) if hasattr(strip, "channelbag") else None
+            if bag is not None:
+                curves.extend(bag.fcurves)
+    return curves
+
+
+def _object_text(obj) -> list[str]:
+    """What moves ``obj`` over time, as text: its animation (action keys, drivers, NLA strips), the values of its
+    channels that are not animated (read at any frame they are the same), its parenting and constraints."""
+    parts = [f"{obj.name}|{obj.rotation_mode}|{obj.parent_type}|{tuple(map(tuple, obj.matrix_parent_inverse))}"]
+    animated = set()
+    animation = obj.animation_data
+    if animation is not None:
+        curves = _own_fcurves(animation) + list(animation.drivers)
+        slot = getattr(animation, "action_slot", None)
+        parts.append(f"{animation.action.name if animation.action else ''}|{slot.identifier if slot else ''}")
+        for curve in curves:
+            animated.add((curve.data_path, curve.array_index))
+            parts.append(_curve_text(curve))
+        for track in animation.nla_tracks:
+            parts.append(f"{track.mute}|{track.is_solo}|" + ";".join(
+                f"{strip.action.name if strip.action else ''},{strip.frame_start},{strip.frame_end},{strip.scale},"
+                f"{strip.repeat},{strip.influence},{strip.mute},{strip.blend_type},{strip.extrapolation}"
+                for strip in track.strips))
+    for channel in _STATIC_CHANNELS:
+        values = tuple(getattr(obj, channel))
+        parts.append(f"{channel}:" + ",".join("~" if (channel, index) in animated else repr(round(v, 9))
+                                              for index, v in enumerate(values)))
+    for constraint in obj.constraints:
+        target = getattr(constraint, "target", None)
+        parts.append(f"{constraint.type}|{constraint.mute}|{constraint.influence}|{target.name if target else ''}|"
+                     f"{getattr(constraint, 'subtarget', '')}")
+    return parts
+
+
+def bake_inputs(scene: bpy.types.Scene) -> str:
+    """A digest of everything the sun's baked keys depend on: the atmosphere and sun settings, the frame range,
+    and what moves the sun lamp (:func:`_object_text` of the lamp, its parents and constraint targets). A bake
+    whose stored digest differs is stale (:func:`follow`)."""
+    settings = scene.atmos
+    key, _ = scene_reading.atmosphere_with_key(scene)
+    lamp = scene_reading.sun_object(scene)
+    parts = [repr(key), repr((float(settings.sun_angular_diameter), bool(settings.drive_sun_lamp),
+                              scene.frame_start, scene.frame_end))]
+    for obj in _motion_objects(lamp):
+        parts.extend(_object_text(obj))
+    return hashlib.sha1("\n".join(parts).encode()).hexdigest()
+
+
+def is_bake_current(scene: bpy.types.Scene) -> bool:
+    """True when the scene needs no sun bake (a still sun, none baked) or its bake is of the current inputs."""
+    baked = scene.get(BAKED_KEY)
+    if baked is None:
+        return not scene_reading.is_sun_animated(scene)
+    return baked.get("inputs") == bake_inputs(scene)
+
+
+_baking: set[str] = set()
+
+
+def follow(scene: bpy.types.Scene) -> None:
+    """After a sync or an edit: re-bake the sun's keys when their inputs changed (:func:`bake_inputs`): a slider, an
+    edited sun animation or a new frame range would otherwise be overridden by the old keys at every other frame
+    and in renders. At once in the background (scripts, the CLI; an animated Precise scene's tables too), else
+    0.3 s after the last change (:class:`.debounce.Debounced`), so a slider drag bakes once (the sun's keys only:
+    re-baking the per-frame Precise tables takes about 0.5 s a frame, so the UI leaves them to Refresh). Cheap when
+    current (one digest of a few objects' animation)."""
+    if scene.name in _baking or is_bake_current(scene):
+        return
+    if bpy.app.background:
+        rebake(scene)
+        return
+    _later.request(scene)
+
+
+def rebake(scene: bpy.types.Scene, *, precise: bool = True) -> int:
+    """Bake the sun's keys again (:func:`bake_sun_animation`) and, with ``precise``, an animated scene's Precise
+    tables with them (about 0.5 s a frame); the number of frames baked."""
+    frames = bake_sun_animation(scene)
+    if precise and precise_tables.uses_precise(scene) and precise_tables.moves(scene):
+        precise_tables.bake(scene)
+    return frames
+
+
+def _rebake_if_stale(scene: bpy.types.Scene) -> None:
+    if getattr(scene, "atmos", None) is not None and scene.atmos.enabled and not is_bake_current(scene):
+        rebake(scene, precise=False)   # interactive: Refresh re-bakes the per-frame Precise tables
+
+
+_later = Debounced(_rebake_if_stale)
+
+
+def cancel_pending() -> None:
+    """Drop queued re-bakes and their timer (unregister)."""
+    _later.cancel()
+
+
+def bake_sun_animation(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int | None = None) -> int:
+    """Keyframe, one key per frame, everything the sun drives: shader parameters and the lamp's colour/strength.
+
+    With the keys in the file, a render without the add-on (``blender -b file.blend -f N`` on a farm) evaluates
+    the sun's direction, E_sun, the sky and the lamp for every frame; no Python drivers are involved.
+    Keys are LINEAR (motion blur sub-frames interpolate). When the sun is not animated nothing is keyed and
+    earlier baked keys are removed. The current frame is restored. Returns the number of frames baked.
+    """
+    clear_baked_keys(scene)
+    if not scene_reading.is_sun_animated(scene):
+        return 0
+    inputs = bake_inputs(scene)
+    lamp = scene_reading.sun_object(scene)
+    start = scene.frame_start if frame_start is None else int(frame_start)
+    end = scene.frame_end if frame_end is None else int(frame_end)
+    if end < start:
+        raise ValueError(f"bake_sun_animation: frame_end {end} is before frame_start {start}")
+    parameters = scene_reading.groups().parameters
+    current, subframe = scene.frame_current, scene.frame_subframe
+    _baking.add(scene.name)
+    try:
+        for frame in range(start, end + 1):
+            scene.frame_set(frame)
+            sync.sync_scene(scene)
+            parameters.keyframe_shader_parameters(scene, frame)
+            if scene.atmos.drive_sun_lamp:
+                for path in LAMP_PATHS:
+                    lamp.data.keyframe_insert(path, frame=frame)
+    finally:
+        scene.frame_set(current, subframe=subframe)
+        _baking.discard(scene.name)
+    for idblock in (scene, lamp.data):
+        for fcurve in baked_fcurves(idblock):
+            for point in fcurve.keyframe_points:
+                point.interpolation = "LINEAR"
+    scene[BAKED_KEY] = {"lamp_data": lamp.data.name if scene.atmos.drive_sun_lamp else "", "start": start,
+                        "end": end, "inputs": inputs}
+    return end - start + 1
+
+
+def baked_fcurves(idblock) -> list:
+    """The F-curves of ``idblock`` on the paths a bake writes."""
+    animation = idblock.animation_data
+    if animation is None or animation.action is None:
+        return []
+    parameters = scene_reading.groups().parameters
+    names = set(parameters.PARAMETER_NAMES) - set(parameters.PRECISE_PARAMETER_NAMES)   # those keys are the tables'
+    paths = {f'["{name}"]' for name in names} if isinstance(idblock, bpy.types.Scene) else set(LAMP_PATHS)
+    return [c for c in parameters.fcurves_of(animation.action) if c.data_path in paths]
+
+
+def clear_baked_keys(scene: bpy.types.Scene) -> None:
+    """Remove the keys a previous :func:`bake_sun_animation` wrote (shader parameters and lamp data)."""
+    baked = scene.get(BAKED_KEY)
+    if baked is None:
+        return
+    remove = scene_reading.groups().parameters.remove_fcurve
+    lights = [bpy.data.lights.get(baked.get("lamp_data", ""))]
+    for idblock in [scene, *[light for light in lights if light is not None]]:
+        for fcurve in baked_fcurves(idblock):
+            remove(idblock.animation_data.action, fcurve)
+    del scene[BAKED_KEY]
+
+
+class ATMOS_OT_bake_sun(bpy.types.Operator):
+    """Keyframe the sun's shader parameters and lamp colour/strength on every frame, so the animation renders
+    right without the add-on (render farms)"""
+
+    bl_idname = "atmos.bake_sun"
+    bl_label = "Bake Sun Animation"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        scene = context.scene
+        try:
+            frames = bake_sun_animation(scene)
+        except (RuntimeError, ValueError, TypeError) as error:
+            self.report({"ERROR"}, f"Atmos could not bake the sun: {error}")
+            return {"CANCELLED"}
+        if frames:
+            self.report({"INFO"}, f"Atmos: sun baked on {frames} frame(s), {scene.frame_start}-{scene.frame_end}")
+        else:
+            self.report({"INFO"}, "Atmos: the sun lamp is not animated; nothing to bake (earlier keys removed)")
+        return {"FINISHED"}
+
+
+CLASSES = (ATMOS_OT_bake_sun,)
