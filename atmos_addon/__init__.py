@@ -13,12 +13,12 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
-#: The extension root folder (holds ``blender_manifest.toml``, ``atmos_addon/``, ``node_groups/``).
+#: The extension root folder (holds ``blender_manifest.toml``, ``atmos_addon/``, ``sample_scenes/`` in a checkout).
 EXTENSION_ROOT = Path(__file__).resolve().parent.parent
 
 
 def import_sibling(name: str) -> ModuleType:
-    """Import a top-level package of the extension that sits beside ``atmos_addon`` (e.g. ``node_groups``).
+    """Import a top-level package that sits beside ``atmos_addon`` (the sample scenes of a source checkout).
 
     Installed as an extension, both live under one parent package (``bl_ext.<repo>.atmos``);
     from a source checkout (tests, ``python -m atmos_addon``) ``atmos_addon`` is top-level and its

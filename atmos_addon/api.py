@@ -83,7 +83,7 @@ def _point_sun(scene, elevation_deg: float | None, azimuth_deg: float | None) ->
     """Rotate the sun lamp; an angle given as None keeps the lamp's current value. Nothing when both are None."""
     if elevation_deg is None and azimuth_deg is None:
         return
-    from .blender import sun_lamp
+    from .blender.apply import sun_lamp
 
     current_elevation, current_azimuth = sun_lamp.sun_angles(scene)
     sun_lamp.set_sun_angles(

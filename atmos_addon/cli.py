@@ -278,7 +278,7 @@ def cmd_contact_sheet(args: argparse.Namespace) -> int:
     for name in args.presets:
         api.load_preset(name)  # refuse an unknown or bad preset before opening the scene
     scene = _prepare_scene(args, with_preset=False)
-    from .blender import contact_sheet
+    from .blender.ui import contact_sheet
 
     total = len(args.presets) * len(args.elevations)
 
@@ -312,7 +312,7 @@ def cmd_presets(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     """Render the valley with every built-in preset and the Mars scene; write a contact sheet and an EXR."""
-    from .blender import contact_sheet
+    from .blender.ui import contact_sheet
 
     output = Path(args.output).resolve()
     output.mkdir(parents=True, exist_ok=True)

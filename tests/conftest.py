@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Shared pytest set-up: the repo root on sys.path so ``atmos_addon`` and ``node_groups`` import."""
+"""Shared pytest set-up: the repo root on sys.path so ``atmos_addon`` (and the sample scenes) import."""
 
 import sys
 from pathlib import Path

@@ -21,7 +21,7 @@ sys.path.insert(0, str(REPO_ROOT))
 
 from atmos_addon.physics.quality import (BENCH_CASES, Level, errors,  # noqa: E402
                                          reference)
-from node_groups.aerial_perspective import NODE_COUNTS  # noqa: E402
+from atmos_addon.nodes.aerial_perspective import NODE_COUNTS  # noqa: E402
 
 COMMAND = ".venv/bpy-5.0.1/bin/python tools/bench_accuracy.py"
 

@@ -49,7 +49,8 @@ from tools.bench import cpu_model  # noqa: E402  (one definition for the bench t
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender import facts, in_render  # noqa: E402
+from atmos_addon.blender import facts
+from atmos_addon.blender.apply import in_render  # noqa: E402
 from sample_scenes import valley  # noqa: E402
 
 CONFIGS = ("off", "Compositor", "In-Render")

@@ -4,7 +4,7 @@
     .venv/bpy-5.2.3/bin/python tools/bench_node_edits.py [--materials 1000,5000]
 
 Enabling Atmos makes two RNA edits per material (``nodes.new`` of the group node and its ``node_tree``
-write, :mod:`atmos_addon.blender.materials`); everything else is read with ``foreach_get`` or batched.
+write, :mod:`atmos_addon.blender.apply.materials`); everything else is read with ``foreach_get`` or batched.
 Each edit runs Blender's node-tree updater. This prints, per file size, the mean microseconds of each of
 the two edits over every material of the file (an empty group as the target, as the bulk pass uses). In the
 supported versions (4.5 and later) an edit costs the same with 1000 or 5000 materials, so an enable is linear in

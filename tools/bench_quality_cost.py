@@ -50,7 +50,7 @@ from tools.bench import cpu_model  # noqa: E402  (one definition for the bench t
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender.materials import TAG  # noqa: E402  (the tag on nodes the add-on made)
+from atmos_addon.blender.apply.materials import TAG  # noqa: E402  (the tag on nodes the add-on made)
 from sample_scenes import valley  # noqa: E402
 
 CONFIGS = ("off", "fast", "fast-per-pixel", "balanced", "balanced-per-pixel", "precise", "precise-per-pixel")

@@ -37,7 +37,8 @@ from numpy.lib.stride_tricks import sliding_window_view  # noqa: E402
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender import in_render, orchestrator  # noqa: E402
+from atmos_addon.blender.apply import in_render
+from atmos_addon.blender import orchestrator  # noqa: E402
 from sample_scenes import valley  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])

@@ -5,7 +5,7 @@
 
 In In-Render mode the world is multiplied by exp(tau_dome(d)) on camera, glossy and transmission rays, the
 optical depth of the camera-centred domes along d. A sky ray reflected at a point p leaves the domes after
-l_i(p, d) instead of R_i(d); without the domes' transparent filters (``node_groups.in_render.dome_filter``)
+l_i(p, d) instead of R_i(d); without the domes' transparent filters (``atmos_addon.nodes.in_render.dome_filter``)
 the reflected sky would be off by the factor
 
     r = exp(sum_i sigma_i (R_i(d) - l_i(p, d)))
@@ -66,7 +66,8 @@ from mathutils import Vector  # noqa: E402
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender import compositor, facts, in_render, scene_reading  # noqa: E402
+from atmos_addon.blender.apply import compositor, in_render
+from atmos_addon.blender import facts, scene_reading  # noqa: E402
 from atmos_addon.physics.dome_mesh import dome_radius  # noqa: E402
 from sample_scenes import valley  # noqa: E402
 

@@ -53,7 +53,7 @@ import numpy as np  # noqa: E402
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender import compositor, in_render  # noqa: E402
+from atmos_addon.blender.apply import compositor, in_render  # noqa: E402
 
 DOC = REPO_ROOT / "docs" / "silhouettes.md"
 IS_5 = bpy.app.version >= (5, 0, 0)

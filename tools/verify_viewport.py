@@ -180,7 +180,7 @@ def sample_points() -> list[tuple[str, Vector, tuple | None]]:
 def show_coverage_pass(scene) -> None:
     """Link the Render Layers' ``atmos_coverage`` output straight to the compositor's output (as the tests'
     ``_show_pass``), so the screen shows the pass the viewport compositor receives."""
-    from atmos_addon.blender import compositor
+    from atmos_addon.blender.apply import compositor
 
     tree = compositor._current_tree(scene)
     combine = tree.nodes[compositor.COMPOSITE_NODE]

@@ -23,7 +23,8 @@ import hashlib
 
 import bpy
 
-from . import compositor, facts, materials, scene_reading
+from . import facts, scene_reading
+from .apply import compositor, materials
 
 FINGERPRINT_KEY = "atmos_fingerprint"
 STAMP_KEY = "atmos_fingerprint_of"

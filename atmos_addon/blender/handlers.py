@@ -12,7 +12,8 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
-from . import group_integrity, materials, orchestrator, precise_tables, sun_bake, sync
+from . import group_integrity, orchestrator, sun_bake, sync
+from .apply import materials, precise_tables
 
 
 @persistent

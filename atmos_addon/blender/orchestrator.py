@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import (compositor, facts, group_integrity, in_render, materials, precise_tables, quality_choice,
-               scene_reading, settings_io, sun_bake, sun_lamp, sync, world)
+from . import facts, group_integrity, quality_choice, scene_reading, settings_io, sun_bake, sync
+from .apply import compositor, in_render, materials, precise_tables, sun_lamp, world
 
 #: Names of scenes whose ``enabled`` switch this module is setting (its update callback waits).
 _applying: set[str] = set()

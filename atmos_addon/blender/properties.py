@@ -70,25 +70,25 @@ def _set_air_density(self, value: float) -> None:
 
 
 def _get_sun_elevation(self) -> float:
-    from . import sun_lamp
+    from .apply import sun_lamp
 
     return sun_lamp.sun_angles(self.id_data)[0]
 
 
 def _set_sun_elevation(self, value: float) -> None:
-    from . import sun_lamp
+    from .apply import sun_lamp
 
     sun_lamp.set_sun_angles(self.id_data, value, sun_lamp.sun_angles(self.id_data)[1])
 
 
 def _get_sun_azimuth(self) -> float:
-    from . import sun_lamp
+    from .apply import sun_lamp
 
     return sun_lamp.sun_angles(self.id_data)[1]
 
 
 def _set_sun_azimuth(self, value: float) -> None:
-    from . import sun_lamp
+    from .apply import sun_lamp
 
     sun_lamp.set_sun_angles(self.id_data, sun_lamp.sun_angles(self.id_data)[0], value)
 

@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import bpy
 
-from . import cli_command, contact_sheet, handlers, operators, precise_tables, preset_ops, properties, sun_bake, ui_panel
+from . import handlers, properties, sun_bake
+from .apply import precise_tables
+from .ui import cli_command, contact_sheet, operators, preset_ops
+from .ui import panel as ui_panel
 
 CLASSES = (*properties.CLASSES, *operators.CLASSES, *preset_ops.CLASSES, *contact_sheet.CLASSES, *sun_bake.CLASSES,
            *ui_panel.CLASSES)

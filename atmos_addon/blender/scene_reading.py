@@ -12,7 +12,7 @@ from types import ModuleType
 import numpy as np
 from mathutils import Vector
 
-from .. import import_sibling
+from .. import nodes
 from ..physics import Atmosphere
 from .settings_io import FIELD_MAP
 
@@ -24,8 +24,8 @@ _last_atmosphere: dict[str, tuple] = {}
 
 
 def groups() -> ModuleType:
-    """The extension's ``node_groups`` package (imported on first use)."""
-    return import_sibling("node_groups")
+    """The node groups package, :mod:`atmos_addon.nodes`."""
+    return nodes
 
 
 def sun_object(scene):

@@ -15,7 +15,7 @@ from typing import Any
 
 import bpy
 
-from . import sun_lamp
+from .apply import sun_lamp
 
 #: ``scene.atmos`` properties that are views of other values (get/set), switches with side effects, or
 #: outputs the sync writes (status lines, the ground-sun display): restoring the values they are computed

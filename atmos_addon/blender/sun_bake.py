@@ -15,9 +15,10 @@ import hashlib
 import bpy
 import numpy as np
 
-from . import precise_tables, scene_reading, sync
+from . import scene_reading, sync
+from .apply import precise_tables
+from .apply.sun_lamp import LAMP_PATHS
 from .debounce import Debounced
-from .sun_lamp import LAMP_PATHS
 
 #: Scene custom property: the frame range baked, the lamp data whose keys the bake wrote and the inputs' digest.
 BAKED_KEY = "atmos_sun_baked"

@@ -17,7 +17,8 @@ import numpy as np
 from ..physics import Atmosphere, sun_irradiance_ground
 from ..physics.balanced import sun_optical_depths_ground
 from ..physics.sun import LUMINANCE_WEIGHTS
-from . import compositor, in_render, scene_reading, sun_lamp, world
+from . import scene_reading
+from .apply import compositor, in_render, sun_lamp, world
 
 #: Per scene: ((settings values, elevation, sun radius, limb darkening), E_sun, colour, strength, sun depths),
 #: the lamp's matrix, the camera's z (caches only; nothing here is needed to restore a file).

@@ -19,7 +19,8 @@ from mathutils import Vector
 
 import atmos_addon
 from atmos_addon import plan
-from atmos_addon.blender import compositor, materials, orchestrator, scene_reading, settings_io
+from atmos_addon.blender.apply import compositor, materials
+from atmos_addon.blender import orchestrator, scene_reading, settings_io
 from atmos_addon.physics import sun_irradiance_ground
 from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, set_use_nodes, \
     user_compositor, view_direction
@@ -423,7 +424,7 @@ def test_per_pixel_mode_composites_the_physics(engine: str, tolerance: float, tm
 
 
 def test_per_pixel_names_agree_between_the_materials_and_the_compositor_group() -> None:
-    from node_groups import parameters, per_pixel
+    from atmos_addon.nodes import parameters, per_pixel
 
     assert (materials.AOV_DISTANCE, materials.AOV_VIEW) == (per_pixel.AOV_DISTANCE, per_pixel.AOV_VIEW)
     assert materials.DISTANCE_AOV_UNIT_M == per_pixel.DISTANCE_AOV_UNIT_M
@@ -514,7 +515,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
 def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_again() -> None:
     """A file saved by the first Per Pixel version (stop 18: eight parameter inputs, Fast only): the next sync
     rebuilds the group in place with today's inputs, and the group node gets a valid driver on every one."""
-    from node_groups import per_pixel
+    from atmos_addon.nodes import per_pixel
 
     scene = bpy.context.scene
     mesh_object("Thing", user_material())
@@ -545,7 +546,7 @@ def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_ag
 def test_the_per_pixel_camera_driver_picks_up_a_camera_added_after_enabling() -> None:
     """Enabled without a camera, the camera-z driver fails and Blender flags it invalid for good (saved so in the
     file); adding a camera makes the depsgraph handler clear the flag, so the group reads the camera's z."""
-    from node_groups import per_pixel
+    from atmos_addon.nodes import per_pixel
 
     scene = bpy.context.scene
     scene.camera = None

@@ -222,7 +222,7 @@ def test_presets_list_show_validate(workdir: Path) -> None:
 
 def test_blender_command_is_registered_with_the_add_on() -> None:
     import atmos_addon
-    from atmos_addon.blender import cli_command
+    from atmos_addon.blender.ui import cli_command
 
     atmos_addon.register()
     try:

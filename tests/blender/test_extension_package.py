@@ -52,7 +52,7 @@ def test_zip_holds_the_extension_and_nothing_else(extension_zip: Path) -> None:
     assert "blender_manifest.toml" in names
     assert "__init__.py" in names
     assert "atmos_addon/physics/__init__.py" in names
-    assert "node_groups/__init__.py" in names
+    assert "atmos_addon/nodes/__init__.py" in names
     for excluded in ("tests/", "sample_scenes/", ".ci/", "tools/", ".venv/", "Makefile", "run", "requirements.txt"):
         assert not any(name == excluded or name.startswith(excluded) for name in names), excluded
     assert not any(name.endswith((".pyc", ".blend")) for name in names)

@@ -21,7 +21,8 @@ from mathutils import Vector
 
 import atmos_addon
 import atmos_addon.api
-from atmos_addon.blender import in_render, materials, orchestrator, scene_reading, settings_io
+from atmos_addon.blender.apply import in_render, materials
+from atmos_addon.blender import orchestrator, scene_reading, settings_io
 from atmos_addon.physics import sun_irradiance_ground
 from atmos_addon.physics.sky import aerial_distance_clamped, dome_distance_approx, extinction_layered, \
     inscattering_layered

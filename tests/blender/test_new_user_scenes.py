@@ -25,7 +25,8 @@ import pytest
 
 import atmos_addon
 from atmos_addon import cli, plan, presets
-from atmos_addon.blender import facts, handlers, in_render, materials
+from atmos_addon.blender import facts, handlers
+from atmos_addon.blender.apply import in_render, materials
 from atmos_addon.physics import sun_irradiance_ground
 from atmos_addon.physics.aerial_perspective import inscattering
 from atmos_addon.physics.sky import dome_distance

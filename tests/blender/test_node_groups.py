@@ -21,11 +21,11 @@ import render_utils as ru
 from atmos_addon.physics import Atmosphere, inscattering
 from atmos_addon.physics.sky import (aerial_distance_clamped, dome_distance_approx, elevation_of,
                                      extinction_layered, inscattering_layered)
-from node_groups import (AERIAL_PARAMETER_NAMES, GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING,
+from atmos_addon.nodes import (AERIAL_PARAMETER_NAMES, GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING,
                          OUTPUT_TRANSMITTANCE, AerialFeatures, clear_shader_parameters, describe_features,
                          ensure_aerial_perspective_group, node_count, read_shader_parameters, write_shader_parameters)
-from node_groups.aerial_perspective import NODE_COUNTS
-from node_groups.parameters import BALANCED_PARAMETER_NAMES
+from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
+from atmos_addon.nodes.parameters import BALANCED_PARAMETER_NAMES
 
 WIDTH, HEIGHT = 12, 8
 FOV = math.radians(60.0)
@@ -460,7 +460,7 @@ PRECISE_CASES = (
 
 def _write_precise(scene, atm: Atmosphere, sun_direction, metres_per_unit: float, origin_altitude: float, camera):
     """Parameters and the one-tile table as the add-on writes them; returns the tile."""
-    from atmos_addon.blender import precise_tables
+    from atmos_addon.blender.apply import precise_tables
     from atmos_addon.physics.precise import bake_tile
 
     _write_balanced(scene, atm, sun_direction, metres_per_unit, origin_altitude)

@@ -15,7 +15,8 @@ import bpy
 import pytest
 
 import atmos_addon
-from atmos_addon.blender import group_integrity, materials, orchestrator, sync
+from atmos_addon.blender import group_integrity, orchestrator, sync
+from atmos_addon.blender.apply import materials
 
 
 @pytest.fixture(autouse=True)

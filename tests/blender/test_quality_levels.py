@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 
 import atmos_addon
-from atmos_addon.blender import in_render, orchestrator, quality_choice
+from atmos_addon.blender.apply import in_render
+from atmos_addon.blender import orchestrator, quality_choice
 from atmos_addon.physics.balanced import (CURVATURE_PIECES, PER_PIXEL_PIECES, PER_PIXEL_SUN_AT,
                                           sun_optical_depths_ground)
 from atmos_addon.physics.quality import SceneSummary
-from node_groups import balanced as balanced_nodes
+from atmos_addon.nodes import balanced as balanced_nodes
 from render_utils import emission_material
 
 GROUP = "Atmos Aerial Perspective"
@@ -79,7 +80,7 @@ def test_quality_switch_edits_the_same_group_and_materials_keep_it():
 
 
 def balanced_nodes_count() -> int:
-    from node_groups.aerial_perspective import NODE_COUNTS
+    from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
 
     return NODE_COUNTS["rayleigh+mie+abs+balanced"]
 
@@ -163,8 +164,8 @@ def test_precise_bakes_follows_the_sun_and_camera_and_cleans_up():
     re-bakes (a still scene), an unrelated slider does not; leaving Precise or disabling removes the image and
     the parameters."""
     from atmos_addon.physics.precise import DEFAULT_SHAPE
-    from node_groups import precise as precise_nodes
-    from node_groups.parameters import PRECISE_PARAMETER_NAMES, PRECISE_TILE
+    from atmos_addon.nodes import precise as precise_nodes
+    from atmos_addon.nodes.parameters import PRECISE_PARAMETER_NAMES, PRECISE_TILE
 
     assert (precise_nodes.ALTITUDES, precise_nodes.AZIMUTHS, precise_nodes.DISTANCES) == (
         DEFAULT_SHAPE.altitudes, DEFAULT_SHAPE.azimuths, DEFAULT_SHAPE.distances)

@@ -60,7 +60,7 @@ def test_defaults_are_the_clear_atmosphere_in_per_km() -> None:
 def test_operators_enable_and_disable_with_undo() -> None:
     atmos_addon.register()
     try:
-        from atmos_addon.blender import operators
+        from atmos_addon.blender.ui import operators
 
         for cls in operators.CLASSES:
             assert {"REGISTER", "UNDO"} <= set(cls.bl_options)

@@ -24,7 +24,8 @@ import pytest
 
 import atmos_addon
 from atmos_addon import plan
-from atmos_addon.blender import compositor, materials, orchestrator, scene_reading, sun_bake
+from atmos_addon.blender.apply import compositor, materials
+from atmos_addon.blender import orchestrator, scene_reading, sun_bake
 
 import render_utils
 from render_utils import snapshot_tree as snapshot
@@ -356,8 +357,8 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
     """Precise with a camera climbing 0 -> 3 km and a sun setting over 3 frames: one table tile per frame in
     the packed image, the tile parameters keyed (constant), and a process without the add-on renders every frame
     as the session did (max abs difference <= 1e-4); the frames differ from each other."""
-    from node_groups import precise as precise_nodes
-    from node_groups.parameters import PRECISE_TILE
+    from atmos_addon.nodes import precise as precise_nodes
+    from atmos_addon.nodes.parameters import PRECISE_TILE
 
     scene = bpy.context.scene
     scene.atmos.quality = "PRECISE"

@@ -21,15 +21,16 @@ import pytest
 
 import atmos_addon
 import render_utils as ru
-from atmos_addon.blender import orchestrator, scene_reading, sun_bake, sun_lamp, world
+from atmos_addon.blender import orchestrator, scene_reading, sun_bake
+from atmos_addon.blender.apply import sun_lamp, world
 from atmos_addon.physics import Atmosphere, sun_color_and_strength, sun_irradiance_ground
 from atmos_addon.physics.sky import (CHAPMAN_APPROX_P, SUN_LIMB_DARKENING, aerial_distance_clamped,
                                      dome_distance_approx, elevation_of, inscattering_layered, sky_radiance)
 from atmos_addon.physics.sun import SUN_ANGULAR_RADIUS_RAD
-from node_groups import (OUTPUT_INSCATTERING, OUTPUT_RADIANCE, SKY_NODE_COUNTS, AerialFeatures, SkyFeatures,
+from atmos_addon.nodes import (OUTPUT_INSCATTERING, OUTPUT_RADIANCE, SKY_NODE_COUNTS, AerialFeatures, SkyFeatures,
                          ensure_aerial_perspective_group, ensure_sky_group, parameters, write_shader_parameters)
-from node_groups import sky_lighting
-from node_groups.dome import CHAPMAN_APPROX_P as NODE_CHAPMAN_P
+from atmos_addon.nodes import sky_lighting
+from atmos_addon.nodes.dome import CHAPMAN_APPROX_P as NODE_CHAPMAN_P
 from atmos_addon.physics.sky_table import sky_lighting_table
 
 ATMOSPHERE = Atmosphere()
@@ -218,7 +219,7 @@ def test_sky_lighting_group_matches_the_sky(engine):
 def _write_precise_sky(scene, sun: np.ndarray, altitude_m: float):
     """Shader parameters and the one-tile Precise table for a camera ``altitude_m`` up, as the add-on writes them;
     returns (E_sun, tile)."""
-    from atmos_addon.blender import precise_tables
+    from atmos_addon.blender.apply import precise_tables
     from atmos_addon.physics.precise import bake_tile
 
     e_sun = _write(scene, sun)

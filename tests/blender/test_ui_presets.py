@@ -24,7 +24,8 @@ import pytest
 
 import atmos_addon
 from atmos_addon import presets
-from atmos_addon.blender import contact_sheet, orchestrator, preset_ops, registration, scene_reading, settings_io, ui_panel
+from atmos_addon.blender.ui import contact_sheet, preset_ops, panel as ui_panel
+from atmos_addon.blender import orchestrator, registration, scene_reading, settings_io
 
 from render_utils import EEVEE_ENGINE, ENGINES, make_camera, make_plane, render_to_array, set_engine
 

@@ -20,7 +20,8 @@ import bpy
 import numpy as np
 import pytest
 
-from atmos_addon.blender import materials, scene_reading
+from atmos_addon.blender.apply import materials
+from atmos_addon.blender import scene_reading
 
 from test_robustness import addon  # noqa: F401  (autouse: a factory-fresh file with the add-on registered)
 from test_robustness import (compositor_state, lamp_direction, mesh_object, orphan_groups, small_scene, snapshot,

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import group_integrity, orchestrator
+from .. import group_integrity, orchestrator
 
 
 def _report(operator, report: orchestrator.Report) -> None:

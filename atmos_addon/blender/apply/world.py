@@ -3,11 +3,11 @@
 
 The user's world data-block is kept (its Eevee probe resolution, sun-extraction and Cycles sampling settings,
 its other nodes): seven tagged nodes are added to its tree. The analytic "Atmos Sky" group
-(:mod:`node_groups.sky`) feeds a Background shader of strength 1, and that Background feeds the active World
+(:mod:`atmos_addon.nodes.sky`) feeds a Background shader of strength 1, and that Background feeds the active World
 Output's Surface: what Eevee renders, and what Cycles' camera rays see. For Cycles a second, Cycles-target
 World Output is added: a Mix Shader on Light Path > Is Camera Ray gives camera rays that same Background and
 every other ray (light samples of the world, rays escaping after a bounce) the same sky from the world's own
-"Atmos Sky Lighting" group (:mod:`node_groups.sky_lighting`: a per-atmosphere table, a fraction of the cost);
+"Atmos Sky Lighting" group (:mod:`atmos_addon.nodes.sky_lighting`: a per-atmosphere table, a fraction of the cost);
 Cycles skips the branch it does not pick. The link that fed Surface before is remembered (node name and socket
 identifier) and put back when the sky is removed; nothing else in the tree is touched, so the tree comes back
 exactly. :func:`sync_sky_lighting` writes the table when the atmosphere changes. A scene without a world gets a new world
@@ -25,8 +25,8 @@ import warnings
 
 import bpy
 
-from .scene_reading import groups
-from .tree_edits import REACTIVATE_KEY, TAG
+from ..scene_reading import groups
+from ..tree_edits import REACTIVATE_KEY, TAG
 
 STATE_KEY = "atmos_sky"
 CREATED_WORLD_NAME = "Atmos Sky World"
@@ -122,7 +122,7 @@ def _add_lighting_branch(tree: bpy.types.NodeTree, features, background: bpy.typ
 def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, features=None) -> str:
     """Show the sky ``group`` in ``scene``'s world (idempotent: an installed sky only gets ``group`` set).
 
-    ``features`` (the sky's :class:`~node_groups.sky.SkyFeatures`, default: all terms) shape the lighting group.
+    ``features`` (the sky's :class:`~atmos_addon.nodes.sky.SkyFeatures`, default: all terms) shape the lighting group.
     A sky installed by an Atmos without the lighting branch gets it. Returns a sentence for the report.
     """
     features = features if features is not None else groups().sky.SkyFeatures()
@@ -281,7 +281,7 @@ def update_sky_lighting(scene: bpy.types.Scene, features) -> None:
 
 def write_sky_lighting_table(scene: bpy.types.Scene, atmosphere) -> None:
     """Write the lighting group's table when the atmosphere changed (values only; one key comparison when not)."""
-    from ..physics.sky_table import sky_lighting_table
+    from ...physics.sky_table import sky_lighting_table
 
     tree = _lighting_tree(scene)
     if tree is None:

@@ -29,9 +29,10 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, StringProperty
 
-from .. import presets
-from ..presets import Preset, PresetError
-from . import orchestrator, scene_state, settings_io, sun_lamp
+from ... import presets
+from ...presets import Preset, PresetError
+from .. import orchestrator, scene_state, settings_io
+from ..apply import sun_lamp
 
 #: Environment variable naming the user preset folder when Atmos runs from a source checkout.
 USER_DIRECTORY_ENV = "ATMOS_USER_PRESETS"
@@ -41,8 +42,9 @@ USER_DIRECTORY_ENV = "ATMOS_USER_PRESETS"
 # Where user presets live
 
 
-def extension_package(blender_package: str = __package__) -> str:
-    """The add-on's root package for the package of this module (``<root>.atmos_addon.blender``).
+def extension_package(blender_package: str = __package__.rpartition(".")[0]) -> str:
+    """The add-on's root package for the Blender layer's package (``<root>.atmos_addon.blender``, the parent of this
+    module's).
 
     ``bl_ext.user_default.atmos.atmos_addon.blender`` gives ``bl_ext.user_default.atmos``; a source
     checkout's ``atmos_addon.blender`` gives ``""`` (no extension).

@@ -36,14 +36,14 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_TRANSMITTANCE, AOV_VIEW
-from .tree_edits import (TAG, active_of, copy_input, cycles_of, cycles_output, free_spot, output_nodes, place_last,
-                         remove_tagged, surface_link, take_over_cycles_output)
+from ...plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_TRANSMITTANCE, AOV_VIEW
+from ..tree_edits import (TAG, active_of, copy_input, cycles_of, cycles_output, free_spot, output_nodes, place_last,
+                          remove_tagged, surface_link, take_over_cycles_output)
 
 PREFIX = "Atmos "
 #: The AOV names (:data:`atmos_addon.plan.AOVS`); the Per Pixel mode's distance AOV holds alpha s / 1000 (s in m).
 DISTANCE_AOV_UNIT_M = 1000.0
-#: The scene custom property holding metres per scene unit (``node_groups.parameters.METRES_PER_UNIT``).
+#: The scene custom property holding metres per scene unit (``atmos_addon.nodes.parameters.METRES_PER_UNIT``).
 METRES_PER_UNIT = "atmos_metres_per_unit"
 
 #: The one group node each managed material gets, and the group it instances.

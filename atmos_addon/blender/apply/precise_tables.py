@@ -18,9 +18,10 @@ import math
 import bpy
 import numpy as np
 
-from ..physics.precise import DEFAULT_SHAPE, Tile, bake_tile
-from . import compositor, facts, scene_reading
-from .debounce import Debounced
+from ...physics.precise import DEFAULT_SHAPE, Tile, bake_tile
+from .. import facts, scene_reading
+from ..debounce import Debounced
+from . import compositor
 
 #: Largest texture side GPUs accept (OpenGL's usual GL_MAX_TEXTURE_SIZE), px.
 MAX_TEXTURE_SIZE = 16384

@@ -14,7 +14,7 @@ _handle = None
 
 
 def _run(argv: list[str]) -> int:
-    from ..cli import main
+    from ...cli import main
 
     return main(argv)
 

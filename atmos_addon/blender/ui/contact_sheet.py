@@ -26,9 +26,10 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty, StringProperty
 
-from .. import presets
-from ..presets import Preset, PresetError
-from . import bitmap_font, orchestrator, preset_ops, scene_state
+from ... import presets
+from ...presets import Preset, PresetError
+from .. import orchestrator, scene_state
+from . import bitmap_font, preset_ops
 
 DEFAULT_ELEVATIONS_DEG = (60.0, 20.0, 5.0, 1.0)
 DEFAULT_CELL_SIZE = (160, 90)

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Cycles in-render mode: the dome volumes, the per-material emission and the world compensation.
 
-The mechanism is :mod:`node_groups.in_render`'s; this module puts it into a scene and takes it out again:
+The mechanism is :mod:`atmos_addon.nodes.in_render`'s; this module puts it into a scene and takes it out again:
 
 - two dome objects ("Atmos Dome (molecules)", "Atmos Dome (aerosols)") in their own collection "Atmos
   In-Render", meshes from ``physics.dome_mesh`` in metres, scaled to scene units (1 / metres per unit), held on
@@ -30,11 +30,12 @@ import warnings
 
 import bpy
 
-from .. import import_sibling
-from ..physics.dome_mesh import dome_mesh
-from ..plan import EEVEE_CLIP_RATIO_LIMIT
-from . import materials, tree_edits
-from .tree_edits import TAG
+from ... import nodes
+from ...physics.dome_mesh import dome_mesh
+from ...plan import EEVEE_CLIP_RATIO_LIMIT
+from .. import tree_edits
+from ..tree_edits import TAG
+from . import materials
 
 STATE_KEY = "atmos_in_render"
 COLLECTION_NAME = "Atmos In-Render"
@@ -45,7 +46,7 @@ WORLD_TAGS = ("in-render sky", "in-render background", "in-render world output")
 DOME_KEY = "atmos_dome_of"
 #: The camera's clip end is raised to this many times the largest dome distance.
 CLIP_MARGIN = 1.05
-#: Dome crossings a path may make: every dome surface is a transparent filter (``node_groups.in_render``), and
+#: Dome crossings a path may make: every dome surface is a transparent filter (``atmos_addon.nodes.in_render``), and
 #: Cycles counts each crossing as a transparent bounce. A camera ray to the sky crosses 2; a reflected ray
 #: from beyond a dome enters and leaves it, 4 at most. The scene's transparent bounce limit and its
 #: Russian-roulette threshold are raised by this much while In-Render mode is installed (restored on removal),
@@ -54,7 +55,7 @@ DOME_CROSSINGS = 4
 
 
 def _groups():
-    return import_sibling("node_groups").in_render
+    return nodes.in_render
 
 
 def is_installed(scene) -> bool:
@@ -336,7 +337,7 @@ def remove_world(world) -> None:
 
 def horizon_optical_depth(atmosphere) -> float:
     """The largest per-channel optical depth through the domes at the horizon, beta_R R_R(0) + beta_M,ex R_M(0)."""
-    from ..physics.dome_mesh import dome_radius
+    from ...physics.dome_mesh import dome_radius
 
     r_rayleigh = float(dome_radius(0.0, atmosphere.planet_radius, atmosphere.rayleigh_scale_height))
     r_mie = float(dome_radius(0.0, atmosphere.planet_radius, atmosphere.mie_scale_height))
@@ -413,7 +414,7 @@ def uninstall(scene) -> None:
 def remove_unused_groups() -> None:
     """Delete the in-render groups once nothing uses them (no orphan data after disabling)."""
     groups = _groups()
-    aerial = import_sibling("node_groups").aerial_perspective
+    aerial = nodes.aerial_perspective
     for name in (groups.SURFACE_GROUP_NAME, groups.SKY_GROUP_NAME, aerial.SEGMENT_GROUP_NAME):
         tree = bpy.data.node_groups.get(name)
         if tree is not None and tree.users == 0:

@@ -14,7 +14,7 @@ Per pixel the materials leave three AOV sums (see :mod:`.materials`): ``T = sum 
   part gets its atmosphere (first order: the sky's share of the pixel is scaled by T as well);
 - a pixel where a cut-out and the surface behind it both wrote (C > 1): a coverage-weighted mean.
 
-Per Pixel evaluation (``render_mode`` "PER_PIXEL") inserts ``node_groups.per_pixel``'s group instead: the
+Per Pixel evaluation (``render_mode`` "PER_PIXEL") inserts ``nodes.per_pixel``'s group instead: the
 materials write the coverage, distance and view direction, and the compositor evaluates T and L from them
 once per pixel before the same combination. Its parameter inputs are driven from the scene's properties.
 
@@ -32,9 +32,9 @@ import warnings
 
 import bpy
 
-from .. import import_sibling
-from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_TRANSMITTANCE, AOV_VIEW, AOVS
-from .tree_edits import TAG
+from ... import nodes
+from ...plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_TRANSMITTANCE, AOV_VIEW, AOVS
+from ..tree_edits import TAG
 
 GROUP_NAME = "Atmos Aerial Composite"
 GROUP_VERSION = 1
@@ -259,7 +259,7 @@ def ensure_per_pixel_group(features):
     inputs are driven again in every scene that shows it: no input is left at its default, and the Precise
     table's inputs are driven only at that level (the scene has those properties only then).
     """
-    per_pixel = import_sibling("node_groups").per_pixel
+    per_pixel = nodes.per_pixel
     old = bpy.data.node_groups.get(per_pixel.GROUP_NAME)
     before = None if old is None else (len(old.interface.items_tree), old.get(per_pixel.FEATURES_KEY))
     tree = per_pixel.ensure_per_pixel_group(features, ensure_composite_group())
@@ -280,7 +280,7 @@ def _drive_parameters(node, scene) -> None:
     machine without the add-on, or a file opened with scripts disabled, renders the keyed parameters and the
     animated camera. Existing drivers are reset in place (a rebuilt group keeps its sockets' drivers).
     """
-    per_pixel = import_sibling("node_groups").per_pixel
+    per_pixel = nodes.per_pixel
     precise = str(node.node_tree.get(per_pixel.FEATURES_KEY, "")).endswith("+precise")
     sockets = per_pixel.PARAMETER_SOCKETS + (per_pixel.PRECISE_SOCKETS if precise else ())
     targets = [(node.inputs[socket_name], index if size > 1 else None,
@@ -479,7 +479,7 @@ def uninstall(scene) -> None:
         scene.render.use_compositing = bool(state["use_compositing"])
     if STATE_KEY in scene:
         del scene[STATE_KEY]
-    per_pixel_group = bpy.data.node_groups.get(import_sibling("node_groups").per_pixel.GROUP_NAME)
+    per_pixel_group = bpy.data.node_groups.get(nodes.per_pixel.GROUP_NAME)
     if per_pixel_group is not None and per_pixel_group.users == 0:
         bpy.data.node_groups.remove(per_pixel_group)
     group = bpy.data.node_groups.get(GROUP_NAME)

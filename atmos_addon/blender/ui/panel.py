@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import bpy
 
-from .. import presets
-from ..plan import NOTE_IN_RENDER_FAST
-from . import facts, group_integrity, preset_ops
+from ... import presets
+from ...plan import NOTE_IN_RENDER_FAST
+from .. import facts, group_integrity
+from . import preset_ops
 
 
 def _settings(context):

@@ -19,8 +19,8 @@ import bpy
 import numpy as np
 from mathutils import Euler, Matrix
 
-from ..physics import sun_color_and_strength
-from . import scene_reading, settings_io
+from ...physics import sun_color_and_strength
+from .. import scene_reading, settings_io
 
 #: Name of the lamp :func:`ensure_sun_lamp` creates when the scene has none.
 CREATED_SUN_NAME = "Atmos Sun"
