@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""At which camera clip end / clip start ratio does Eevee's world go one flat colour? (atmos_addon.blender.limits)
+"""At which camera clip end / clip start ratio does Eevee's world go one flat colour? (the limit is atmos_addon.plan.EEVEE_CLIP_RATIO_LIMIT)
 
     .venv/bpy-5.2.3/bin/python tools/measure_eevee_clip_range.py [--ratios 1.2e7,1.6e7,2e7]
 

@@ -52,13 +52,13 @@ import math
 import os
 import platform
 import sys
-import tempfile
 import time
 import warnings
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO_ROOT))
+sys.path.insert(0, str(REPO_ROOT / "tests" / "blender"))
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
@@ -66,9 +66,10 @@ from mathutils import Vector  # noqa: E402
 
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
-from atmos_addon.blender.apply import compositor, in_render
+from atmos_addon.blender.apply import in_render  # noqa: E402
 from atmos_addon.blender import facts, scene_reading  # noqa: E402
 from atmos_addon.physics.dome_mesh import dome_radius  # noqa: E402
+from render_utils import render_to_array, route_compositor_output  # noqa: E402
 from sample_scenes import valley  # noqa: E402
 
 LAKE_Z = -0.3
@@ -173,32 +174,9 @@ def erode(mask: np.ndarray, margin: int) -> np.ndarray:
     return out
 
 
-def _route(scene, socket_name: str | None) -> None:
-    """Send a Render Layers output (or, for None, the Atmos composite) to the final output."""
-    tree = compositor._current_tree(scene)
-    combine = tree.nodes[compositor.COMPOSITE_NODE]
-    output = next(n for n in tree.nodes if n.bl_idname in ("NodeGroupOutput", "CompositorNodeComposite"))
-    layers = combine.inputs["Image"].links[0].from_node
-    source = combine.outputs["Image"] if socket_name is None else layers.outputs[socket_name]
-    tree.links.new(source, output.inputs[0])
-
-
 def render(scene) -> np.ndarray:
     """One render (after the compositor, if any); linear RGB (H, W, 3), row 0 at the bottom."""
-    settings = scene.render.image_settings
-    settings.file_format = "OPEN_EXR"
-    settings.color_mode = "RGBA"
-    settings.color_depth = "32"
-    with tempfile.TemporaryDirectory(prefix="atmos-reflection-") as folder:
-        path = os.path.join(folder, "r.exr")
-        scene.render.filepath = path
-        bpy.ops.render.render(write_still=True, scene=scene.name)
-        image = bpy.data.images.load(path, check_existing=False)
-        width, height = image.size
-        pixels = np.empty(width * height * 4, dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-        bpy.data.images.remove(image)
-    return pixels.reshape(height, width, 4)[..., :3].astype(np.float64)
+    return render_to_array(scene)[::-1, :, :3].astype(np.float64)
 
 
 def _exit_distance(q0: np.ndarray, d: np.ndarray, planet: float, scale_height: float) -> np.ndarray:
@@ -253,9 +231,9 @@ def measure(args: argparse.Namespace, camera_name: str) -> dict:
     sky, reflects_sky, points = classify(scene, directions, origin)
     sky, lake = erode(sky, args.margin), erode(reflects_sky, args.margin)
     api.enable(scene, preset=args.preset)
-    _route(scene, "atmos_inscattering")
+    route_compositor_output(scene, "atmos_inscattering")
     inscattering = render(scene)
-    _route(scene, None)
+    route_compositor_output(scene, None)
     reference = render(scene)
     scene.atmos.render_mode = "IN_RENDER"
     if not in_render.is_installed(scene):

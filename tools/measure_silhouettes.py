@@ -40,13 +40,13 @@ import math
 import os
 import platform
 import sys
-import tempfile
 import time
 import warnings
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO_ROOT))
+sys.path.insert(0, str(REPO_ROOT / "tests" / "blender"))
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
@@ -54,6 +54,7 @@ import numpy as np  # noqa: E402
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
 from atmos_addon.blender.apply import compositor, in_render  # noqa: E402
+from render_utils import render_to_array, route_compositor_output  # noqa: E402
 
 DOC = REPO_ROOT / "docs" / "silhouettes.md"
 IS_5 = bpy.app.version >= (5, 0, 0)
@@ -154,40 +155,17 @@ def configure(scene, engine: str, width: int, height: int, *, point: bool, sampl
         render.filter_size = 0.0 if point else (1.0 if box else 1.5)  # 1.5 px: Blender's default
 
 
-def _route(scene, socket_name: str | None) -> None:
-    """Send a Render Layers output (or, for None, the Atmos composite) to the final output."""
-    tree = compositor._current_tree(scene)
-    combine = tree.nodes[compositor.COMPOSITE_NODE]
-    output = next(n for n in tree.nodes if n.bl_idname in ("NodeGroupOutput", "CompositorNodeComposite"))
-    layers = combine.inputs["Image"].links[0].from_node
-    source = combine.outputs["Image"] if socket_name is None else layers.outputs[socket_name]
-    tree.links.new(source, output.inputs[0])
-
-
 def render(scene, socket_name: str | None) -> np.ndarray:
     """One render through the compositor, routed to ``socket_name``; linear RGB, row 0 at the top."""
-    _route(scene, socket_name)
+    route_compositor_output(scene, socket_name)
     pixels = render_plain(scene)
-    _route(scene, None)
+    route_compositor_output(scene, None)
     return pixels
 
 
 def render_plain(scene) -> np.ndarray:
     """One render as the scene's compositor (or, without one, the renderer) leaves it; linear RGB, row 0 at the top."""
-    settings = scene.render.image_settings
-    settings.file_format = "OPEN_EXR"
-    settings.color_mode = "RGBA"
-    settings.color_depth = "32"
-    with tempfile.TemporaryDirectory(prefix="atmos-silhouette-") as folder:
-        path = os.path.join(folder, "r.exr")
-        scene.render.filepath = path
-        bpy.ops.render.render(write_still=True, scene=scene.name)
-        image = bpy.data.images.load(path, check_existing=False)
-        width, height = image.size
-        pixels = np.empty(width * height * 4, dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-        bpy.data.images.remove(image)
-    return pixels.reshape(height, width, 4)[::-1, :, :3].astype(np.float64)
+    return render_to_array(scene)[..., :3].astype(np.float64)
 
 
 def composite(image, t, l, c):

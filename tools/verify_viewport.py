@@ -182,7 +182,7 @@ def show_coverage_pass(scene) -> None:
     ``_show_pass``), so the screen shows the pass the viewport compositor receives."""
     from atmos_addon.blender.apply import compositor
 
-    tree = compositor._current_tree(scene)
+    tree = compositor.current_tree(scene)
     combine = tree.nodes[compositor.COMPOSITE_NODE]
     layers = combine.inputs["Image"].links[0].from_node
     output = next(n for n in tree.nodes if n.bl_idname in ("NodeGroupOutput", "CompositorNodeComposite"))

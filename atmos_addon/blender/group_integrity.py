@@ -1,9 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Notice hand edits inside the node groups Atmos manages, and put the groups back.
 
-Atmos owns three shader groups: "Atmos Aerial Perspective", "Atmos Sky" and "Atmos Surface AOVs", and in Per
-Pixel mode the compositor group "Atmos Aerial Composite (Per Pixel)". A user who opens one (Tab) and changes a
-value or a link changes the effect in every material or render, usually by accident. Each group carries a fingerprint of what the builder made (``tree["atmos_fingerprint"]``:
+Atmos owns every group its registry lists (:mod:`atmos_addon.nodes.registry`: the aerial perspective, the sky and
+its lighting table, the compositor's groups, the material group, the In-Render groups). A user who opens one (Tab)
+and changes a value or a link changes the effect in every material or render, usually by accident. Each group carries a fingerprint of what the builder made (``tree["atmos_fingerprint"]``:
 a hash of the nodes' types, names and settings, the links and the unlinked inputs' values, and the
 interface; node locations, labels and selection are left out, so tidying the layout is no edit),
 stamped right after the builder ran and keyed on the group's version and feature stamps and the
@@ -23,21 +23,15 @@ import hashlib
 
 import bpy
 
-from . import facts, scene_reading
-from .apply import compositor, materials
+from ..nodes import registry, stamps
 
 FINGERPRINT_KEY = "atmos_fingerprint"
 STAMP_KEY = "atmos_fingerprint_of"
 
-AERIAL = "Atmos Aerial Perspective"
-SKY = "Atmos Sky"
-SURFACE = "Atmos Surface AOVs"
-PER_PIXEL = "Atmos Aerial Composite (Per Pixel)"
-#: The managed groups, in build order (the surface group instances the aerial group; the Per Pixel mode's
-#: compositor group exists only while a scene uses that mode).
-MANAGED = (AERIAL, SKY, SURFACE, PER_PIXEL)
-#: The managed groups that are not shader groups.
-_TREE_TYPES = {PER_PIXEL: "CompositorNodeTree"}
+AERIAL = stamps.AERIAL.name
+SKY = stamps.SKY.name
+SURFACE = stamps.SURFACE.name
+PER_PIXEL = stamps.PER_PIXEL.name
 
 #: Node properties every node has (layout, selection, bookkeeping): not part of the fingerprint.
 _BASE_PROPERTIES: frozenset[str] | None = None
@@ -107,18 +101,15 @@ def fingerprint(tree) -> str:
 
 
 def _build_key(tree) -> str:
-    """What the stamp belongs to: the group's own version, feature and mode stamps and the Blender version (a group
+    """What the stamp belongs to: the group's kind, version and features stamps and the Blender version (a group
     rebuilt for another feature set, or the material group rebuilt for the modes of another scene, is stamped
     again, not reported as edited)."""
-    return (f"{tree.get('atmos_version')}|{tree.get('atmos_features')}|{tree.get('atmos_evaluations')}|"
+    return (f"{tree.get(stamps.KIND_KEY)}|{tree.get(stamps.VERSION_KEY)}|{tree.get(stamps.FEATURES_KEY)}|"
             f"{bpy.app.version_string}")
 
 
 def _managed_trees():
-    for name in MANAGED:
-        tree = bpy.data.node_groups.get(name)
-        if tree is not None and tree.bl_idname == _TREE_TYPES.get(name, "ShaderNodeTree") and tree.library is None:
-            yield tree
+    return [tree for _, tree in registry.managed_trees()]
 
 
 def stamp(tree) -> None:
@@ -151,7 +142,7 @@ def edited_groups(*, force: bool = False) -> list[str]:
             result[tree.name] = (stored is not None and tree.get(STAMP_KEY) == _build_key(tree)
                                  and fingerprint(tree) != stored)
         _cache = result
-    return [name for name in MANAGED if _cache.get(name)]
+    return [tree.name for tree in _managed_trees() if _cache.get(tree.name)]
 
 
 def warning(name: str) -> str:
@@ -159,30 +150,16 @@ def warning(name: str) -> str:
     return f"'{name}' was edited by hand: the effect may be wrong"
 
 
-def reset_groups(scene, names=None) -> list[str]:
-    """Rebuild the managed groups (all present ones, or ``names``) in place for ``scene``'s plan; their names.
-
-    Each tree keeps its identity and its interface sockets, so the group nodes in materials and worlds
-    keep their links; only the nodes inside are rebuilt.
-    """
-    groups = scene_reading.groups()
-    plan = facts.plan_of(scene)
-    aerial_features = facts.aerial_features(plan)
+def reset_groups(names=None) -> list[str]:
+    """Rebuild the managed groups (all present ones, or ``names``) in place, each for the features it was built for
+    (:func:`atmos_addon.nodes.registry.rebuild`); their names. Each tree keeps its identity and its interface
+    sockets, so the group nodes in materials and worlds keep their links; only the nodes inside are rebuilt (the
+    caller writes the values again: a lighting group's table is refilled by the next sync)."""
     done = []
-    for tree in list(_managed_trees()):
+    for tree in _managed_trees():
         if names is not None and tree.name not in names:
             continue
-        if tree.name == AERIAL:
-            groups.aerial_perspective.build_aerial_perspective(tree, aerial_features)
-        elif tree.name == SKY:
-            groups.sky.build_sky(tree, facts.sky_features(plan))
-        elif tree.name == PER_PIXEL:
-            groups.per_pixel.build_per_pixel_composite(tree, aerial_features, compositor.ensure_composite_group())
-        else:
-            aerial = (bpy.data.node_groups.get(AERIAL)
-                      or groups.aerial_perspective.ensure_aerial_perspective_group(aerial_features))
-            modes = tuple(str(tree.get(materials.EVALUATIONS_KEY, "COMPOSITOR")).split(","))
-            materials.build_surface_group(tree, aerial, modes)   # the modes it was built for
+        registry.rebuild(tree)
         stamp(tree)
         done.append(tree.name)
     invalidate()

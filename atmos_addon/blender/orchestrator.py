@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import bpy
 
 from . import facts, group_integrity, quality_choice, scene_reading, settings_io, sun_bake, sync
+from ..nodes import registry
 from .apply import compositor, in_render, materials, precise_tables, sun_lamp, world
 
 #: Names of scenes whose ``enabled`` switch this module is setting (its update callback waits).
@@ -172,7 +173,9 @@ def mode_mismatch(scene) -> bool:
 def _ensure_groups(scene) -> None:
     """Rebuild in place every group the plan lists that is stale for it (cheap when current), and stamp them."""
     plan = facts.plan_of(scene)
-    material_group(scene)
+    group = material_group(scene)
+    if plan.compositor is not None and bpy.data.node_groups.get(materials.SURFACE_GROUP) is not None:
+        materials.ensure_surface_group(group, plan.surface_modes)   # the materials' group, once they have it
     if plan.sky:
         sky_group(scene)
         world.update_sky_lighting(scene, facts.sky_features(plan))
@@ -333,11 +336,10 @@ def disable_effect(scene) -> list[str]:
     keep = _materials_used_by_other_enabled_scenes(scene)
     candidates = [m for m in bpy.data.materials if m.as_pointer() not in keep]
     stripped = materials.remove_all(candidates)
-    materials.remove_surface_group()
     compositor.uninstall(scene)
     in_render.uninstall(scene)
-    in_render.remove_unused_groups()
     world.uninstall_sky(scene)
+    registry.remove_unused()   # no Atmos orphans left in the file
     sun_bake.clear_baked_keys(scene)
     sun_lamp.restore_lamp(scene)
     scene_reading.groups().parameters.clear_shader_parameters(scene)

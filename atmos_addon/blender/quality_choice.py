@@ -79,7 +79,6 @@ def summarize(scene) -> SceneSummary:
     return SceneSummary(camera_altitude_range_m=(min(heights), max(heights)), geometry_altitude_span_m=span,
                         max_view_distance_m=distance, sun_elevation_deg=elevation,
                         mie_zero=not np.any(atmosphere.mie_scattering > 0.0),
-                        absorption_zero=not np.any(atmosphere.mie_absorption > 0.0),
                         sun_animated=scene_reading.is_sun_animated(scene), planet_radius_m=atmosphere.planet_radius)
 
 

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import atexit
+
 import bpy
 
 from . import handlers, properties, sun_bake
@@ -19,9 +21,13 @@ def register() -> None:
         bpy.utils.register_class(cls)
     handlers.add_handlers()
     cli_command.register()
+    # With the pip bpy module of 4.5, a process that exits with the add-on still registered crashes (exit code
+    # -11: Blender frees the CLI command after Python has shut down) or hangs; unregister while Python runs.
+    atexit.register(unregister)
 
 
 def unregister() -> None:
+    atexit.unregister(unregister)
     cli_command.unregister()
     handlers.remove_handlers()
     precise_tables.cancel_pending()

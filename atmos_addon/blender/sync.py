@@ -39,7 +39,7 @@ def _sun_values(scene, key: tuple, atmosphere: Atmosphere, elevation_rad: float,
                             dtype=float)
     strength = float(irradiance @ LUMINANCE_WEIGHTS)
     colour = tuple(float(c) for c in irradiance / strength) if strength > 0.0 else (1.0, 1.0, 1.0)
-    depths = sun_optical_depths_ground(elevation_rad, atmosphere)
+    depths = sun_optical_depths_ground(elevation_rad, atmosphere, irradiance)
     _last_sun_values[scene.name] = (sun_key, irradiance, colour, strength, depths)
     return irradiance, colour, strength, depths
 

@@ -23,7 +23,7 @@ exactly the sky behind it beyond both domes, never more ("seamless horizon";
 s is Camera Data > View Distance times the ``atmos_metres_per_unit`` parameter; v is -(Geometry >
 Incoming). Mie absorption adds to extinction only. The other parameters are read from scene custom
 properties (see :mod:`.parameters`), so the tree depends only on which terms are present
-(:class:`AerialFeatures`), and is rebuilt only when those or :data:`NODE_GROUP_VERSION` change.
+(:class:`AerialFeatures`), and is rebuilt only when those or its version (:data:`.stamps.AERIAL`) change.
 
 How the nodes evaluate it (:func:`scattering_terms`): phi1 cancels against the slab's length, so L(a, a) is
 (beta_R Phi_R + beta_M Phi_HG) / beta_ex (1 - exp(-tau)); every exp(-beta x) is b^(k x), a per-channel power
@@ -41,27 +41,24 @@ from __future__ import annotations
 import dataclasses
 
 import bpy
+import numpy as np
 
 from .balanced import balanced_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction, view_direction
-from .graph import GraphBuilder
+from . import stamps
+from .graph import ArrayBuilder, GraphBuilder
 from .precise import precise_terms
 from .terms import HG_DENOMINATOR_FLOOR, LEVELS, AerialFeatures, distance_m, scattering_terms  # noqa: F401
 
 #: Name of the node group in ``bpy.data.node_groups``.
-GROUP_NAME = "Atmos Aerial Perspective"
+GROUP_NAME = stamps.AERIAL.name
 #: The same graph with s the length of the ray segment just travelled (Cycles in-render mode, :mod:`.in_render`).
-SEGMENT_GROUP_NAME = "Atmos Aerial Perspective (Ray Segment)"
+SEGMENT_GROUP_NAME = stamps.AERIAL_SEGMENT.name
 #: Where s comes from: the camera's view distance (the AOV path) or Light Path > Ray Length (per ray segment).
 DISTANCE_SOURCES = ("VIEW", "RAY")
-#: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
-NODE_GROUP_VERSION = 5  # 2: lengths clamped to the virtual sky dome; 3: the layered dome; 4: powers, no phi1;
-#                          5: Precise distances taken at most to the top of the atmosphere
 
 OUTPUT_TRANSMITTANCE = "Transmittance"
 OUTPUT_INSCATTERING = "Inscattering"
-_VERSION_KEY = "atmos_version"
-_FEATURES_KEY = "atmos_features"
 
 
 # -- the group ---------------------------------------------------------------------------------------
@@ -78,6 +75,36 @@ def _ensure_interface(tree: bpy.types.ShaderNodeTree) -> None:
             socket.description = description
 
 
+def aerial_terms(g: GraphBuilder, features: AerialFeatures, distance: str = "VIEW"):
+    """(F_ex, L_in) of the group for ``features``, on any builder: the nodes of the group, or their values
+    (:func:`evaluate`). ``distance`` is one of :data:`DISTANCE_SOURCES` (see :func:`distance_m`)."""
+    s = distance_m(g, distance)
+    view = view_direction(g)
+    if features.level == "balanced":
+        return balanced_terms(g, features, s, view)
+    if features.level == "precise":
+        return precise_terms(g, features, s, view)
+    r_rayleigh, r_mie = dome_distances(g, g.separate(view, label="v")[2])
+    s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
+    s_mie = g.min(s, r_mie, label="s_M = min(s, R_M)") if features.mie or features.absorption else None
+    return scattering_terms(g, features, s_rayleigh, s_mie, cos_theta_to_sun(g, view, sun_direction(g)))
+
+
+def evaluate(features: AerialFeatures, parameter_values, *, distance_units, view_direction, position=None,
+             images=None):
+    """What the group computes, in numpy float32: (F_ex, L_in), each (N, 3), for shading points at
+    ``distance_units`` (N,) scene units from the camera along the unit ``view_direction`` (N, 3); ``position``
+    (N, 3) scene units is where the Balanced level's altitude comes from, ``images`` the Precise table's pixels
+    by image name. ``parameter_values`` are :func:`~.parameters.shader_parameter_values`."""
+    direction = np.asarray(view_direction, dtype=np.float64)
+    inputs = {"view_distance": distance_units, "incoming": -direction,
+              "position": direction * 0.0 if position is None else position}
+    g = ArrayBuilder(parameter_values, inputs, images)
+    f_ex, l_in = aerial_terms(g, features)
+    shape = np.shape(distance_units) + (3,)
+    return np.broadcast_to(g.array(f_ex), shape), np.broadcast_to(g.array(l_in), shape)
+
+
 def build_aerial_perspective(tree: bpy.types.ShaderNodeTree, features: AerialFeatures, distance: str = "VIEW"
                              ) -> None:
     """Clear ``tree``'s nodes and build the aerial-perspective graph for ``features`` (interface kept);
@@ -85,29 +112,18 @@ def build_aerial_perspective(tree: bpy.types.ShaderNodeTree, features: AerialFea
     tree.nodes.clear()
     _ensure_interface(tree)
     g = GraphBuilder(tree)
-    s = distance_m(g, distance)
-    view = view_direction(g)
-    if features.level == "balanced":
-        f_ex, l_in = balanced_terms(g, features, s, view)
-    elif features.level == "precise":
-        f_ex, l_in = precise_terms(g, features, s, view)
-    else:
-        r_rayleigh, r_mie = dome_distances(g, g.separate(view, label="v")[2])
-        s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
-        s_mie = g.min(s, r_mie, label="s_M = min(s, R_M)") if features.mie or features.absorption else None
-        f_ex, l_in = scattering_terms(g, features, s_rayleigh, s_mie, cos_theta_to_sun(g, view, sun_direction(g)))
+    f_ex, l_in = aerial_terms(g, features, distance)
     output = g.node("NodeGroupOutput", label="Group Output")
     tree.links.new(f_ex, output.inputs[OUTPUT_TRANSMITTANCE])
     tree.links.new(l_in, output.inputs[OUTPUT_INSCATTERING])
     g.set_depth(output, g.max_depth + 1)
     g.layout()
-    tree[_VERSION_KEY] = NODE_GROUP_VERSION
-    tree[_FEATURES_KEY] = features.key
+    stamps.stamp(tree, stamps.AERIAL_SEGMENT if distance == "RAY" else stamps.AERIAL, features.key)
 
 
-def is_current(tree: bpy.types.NodeTree, features: AerialFeatures) -> bool:
+def is_current(tree: bpy.types.NodeTree, features: AerialFeatures, distance: str = "VIEW") -> bool:
     """True if ``tree`` was built by this version for ``features``."""
-    return tree.get(_VERSION_KEY) == NODE_GROUP_VERSION and tree.get(_FEATURES_KEY) == features.key
+    return stamps.is_current(tree, stamps.AERIAL_SEGMENT if distance == "RAY" else stamps.AERIAL, features.key)
 
 
 def ensure_aerial_perspective_group(features: AerialFeatures = AerialFeatures(), distance: str = "VIEW"
@@ -117,7 +133,7 @@ def ensure_aerial_perspective_group(features: AerialFeatures = AerialFeatures(),
     With ``distance="RAY"`` it is the "Atmos Aerial Perspective (Ray Segment)" group: the same graph with s the
     length of the ray segment (:func:`distance_m`), for Cycles' in-render mode.
 
-    A tree stamped with the current :data:`NODE_GROUP_VERSION` and ``features`` is returned untouched.
+    A tree stamped with the current version (:mod:`.stamps`) and ``features`` is returned untouched.
     A stale one keeps its identity and interface (group nodes in materials keep their links) and gets
     new nodes. A data-block of that name that is not a shader tree is an error the user must resolve.
     """
@@ -127,14 +143,8 @@ def ensure_aerial_perspective_group(features: AerialFeatures = AerialFeatures(),
         # A ray segment may start anywhere (a mirror, a dome crossing), not at the camera: the Balanced graph's
         # camera altitude h_P - c s would be wrong there, so the in-render segments use the constant density.
         features = dataclasses.replace(features, level="fast")
-    name = SEGMENT_GROUP_NAME if distance == "RAY" else GROUP_NAME
-    tree = bpy.data.node_groups.get(name)
-    if tree is None:
-        tree = bpy.data.node_groups.new(name, "ShaderNodeTree")
-    elif tree.bl_idname != "ShaderNodeTree":
-        raise TypeError(f'Node group "{name}" exists but is a {tree.bl_idname}, not a shader node group; '
-                        f"rename or delete it, then apply Atmos again")
-    if not is_current(tree, features):
+    tree = stamps.group(stamps.AERIAL_SEGMENT if distance == "RAY" else stamps.AERIAL)
+    if not is_current(tree, features, distance):
         build_aerial_perspective(tree, features, distance)
     return tree
 
@@ -153,7 +163,7 @@ def describe_features(features: AerialFeatures) -> str:
     return f"{features.level.capitalize()}, {' + '.join(parts)}: {NODE_COUNTS[features.key]} nodes"
 
 
-#: Nodes in the group per feature key for this :data:`NODE_GROUP_VERSION` (group output included).
+#: Nodes in the group per feature key for this version (:data:`.stamps.AERIAL`; group output included).
 NODE_COUNTS = {"rayleigh": 47, "rayleigh+abs": 73, "rayleigh+mie": 99, "rayleigh+mie+abs": 101,
                "rayleigh+balanced": 295, "rayleigh+abs+balanced": 300, "rayleigh+mie+balanced": 325,
                "rayleigh+mie+abs+balanced": 327, "rayleigh+precise": 174, "rayleigh+abs+precise": 174,

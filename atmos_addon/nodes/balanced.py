@@ -21,8 +21,9 @@ each branch is one pass for the two. The shading point's altitude is ``atmos_ori
 altitude of the world origin) plus its world z times metres per unit; no Python runs at render time, so an
 animated camera renders the same on a farm. The sun's ground optical depths tau_sun,R and tau_sun,M (per
 channel, capped at 50) are parameters the add-on writes per sun position (``physics.balanced.
-sun_optical_depths_ground``), keyed with the sun when it is animated. The exo-atmospheric cap of the numpy
-``sun_irradiance_at_altitude`` is never reached (E_sun exp(tau_sun) <= E_top), so it has no node.
+sun_optical_depths_ground``, given the ground sun), keyed with the sun when it is animated. Those depths are
+scaled so that E_sun exp(tau_sun) <= E_top: the exo-atmospheric cap of the numpy ``sun_irradiance_at_altitude``
+is never reached, so it has no node.
 
 Limits (measured, ``tests/blender/test_node_groups.py``): the graph matches the float32 core to 0.1 % up to
 about 6e5 m and 0.4 % at 2e6 m; beyond, the phi1 blend a + c (b - a) cancels when the series branch grows
@@ -34,21 +35,20 @@ this graph tried, 306 to 369 nodes, compiled that slowly inside the add-on's AOV
 
 from __future__ import annotations
 
+from ..physics import balanced as physics_balanced
+from ..physics.aerial_perspective import SMALL_OPTICAL_DEPTH
 from . import parameters
 from .dome import cos_theta_to_sun, sun_direction
 from .graph import GraphBuilder, Socket
 from .terms import mie_extinction_coefficient, scattering_per_length
 
-#: Straight pieces the curved ray is cut into (``physics.balanced.CURVATURE_PIECES``; a test checks they agree).
-PIECES = 4
-#: The Per Pixel variant (compositor): pieces and where each sees the sun (``physics.balanced.PER_PIXEL_PIECES``,
-#: ``PER_PIXEL_SUN_AT``; a test checks they agree).
-PER_PIXEL_PIECES = 8
-PER_PIXEL_SUN_AT = "middle"
-#: Below this, phi1 uses its series (``physics.aerial_perspective.SMALL_OPTICAL_DEPTH``).
-SMALL_OPTICAL_DEPTH = 1.0e-3
-#: Cap on the sun's gain exponent (``physics.balanced.MAX_SUN_OPTICAL_DEPTH``).
-MAX_SUN_GAIN = 50.0
+#: Straight pieces the curved ray is cut into, the core's.
+PIECES = physics_balanced.CURVATURE_PIECES
+#: The Per Pixel variant (compositor): pieces and where each sees the sun.
+PER_PIXEL_PIECES = physics_balanced.PER_PIXEL_PIECES
+PER_PIXEL_SUN_AT = physics_balanced.PER_PIXEL_SUN_AT
+#: Cap on the sun's gain exponent.
+MAX_SUN_GAIN = physics_balanced.MAX_SUN_OPTICAL_DEPTH
 
 
 def exp_xy(g: GraphBuilder, vector: Socket, *, label: str) -> Socket:
@@ -59,7 +59,7 @@ def exp_xy(g: GraphBuilder, vector: Socket, *, label: str) -> Socket:
 
 def branch_large(g: GraphBuilder, x: Socket, threshold: float) -> Socket:
     """Per component, 1 where x >= ``threshold`` and 0 below (x >= 0): min(floor(x / threshold), 1)."""
-    return g.min(g._vector_math("FLOOR", g.scale(x, 1.0 / threshold)), (1.0, 1.0, 1.0), label=f"x >= {threshold:g}")
+    return g.min(g.floor(g.scale(x, 1.0 / threshold)), (1.0, 1.0, 1.0), label=f"x >= {threshold:g}")
 
 
 def phi1_vector(g: GraphBuilder, x: Socket, exp_minus_x: Socket, *, label: str) -> Socket:
@@ -86,8 +86,7 @@ def ray_geometry(g: GraphBuilder, s: Socket, view: Socket, camera_altitude: Sock
     """
     _, _, c = g.separate(view, label="v")
     if camera_altitude is None:
-        geometry = g.node("ShaderNodeNewGeometry", label="Geometry (position)")
-        _, _, z = g.separate(geometry.outputs["Position"], label="P")
+        _, _, z = g.separate(g.shading_input("position", label="Geometry (position)"), label="P")
         metres = g.attribute(parameters.METRES_PER_UNIT, output="Fac")
         h_point = g.multiply_add(z, metres, g.attribute(parameters.ORIGIN_ALTITUDE, output="Fac"), label="h_P (m)")
         h0 = g.max(g.multiply_add(c, g.neg(s), h_point), 0.0, label="h0 = h_P - c s")

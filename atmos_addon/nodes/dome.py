@@ -21,11 +21,10 @@ from __future__ import annotations
 
 import math
 
+from ..physics.sky import CHAPMAN_APPROX_P
 from . import parameters
 from .graph import GraphBuilder, Socket
 
-#: Shape parameter of the Chapman approximation (``atmos_addon.physics.sky.CHAPMAN_APPROX_P``; a test checks it).
-CHAPMAN_APPROX_P = 0.653
 
 
 def view_direction(g: GraphBuilder) -> Socket:
@@ -34,8 +33,7 @@ def view_direction(g: GraphBuilder) -> Socket:
     Incoming points back toward the viewer in both engines, for surfaces and for the world background
     (the sky tests check the world's sign against the physics core).
     """
-    geometry = g.node("ShaderNodeNewGeometry", label="Geometry")
-    return g.normalize(g.neg(geometry.outputs["Incoming"]), label="v")
+    return g.normalize(g.neg(g.shading_input("incoming", label="Geometry")), label="v")
 
 
 def sun_direction(g: GraphBuilder) -> Socket:

@@ -13,16 +13,25 @@ their depth in the graph, so the tree reads left to right in the editor.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Union
 
 import bpy
+import numpy as np
 
 Socket = bpy.types.NodeSocket
 #: An operand: a node output socket, a number, or three numbers (a vector/colour constant).
 Operand = Union[Socket, float, int, Sequence[float]]
 
 _VECTOR_SOCKET_TYPES = {"VECTOR", "RGBA"}
+#: What a shading point knows without parameters, by name: (node, output) that reads it in a shader.
+SHADING_INPUTS = {
+    "view_distance": ("ShaderNodeCameraData", "View Distance"),   # scene units from the camera
+    "ray_length": ("ShaderNodeLightPath", "Ray Length"),          # scene units along the ray segment just travelled
+    "is_camera_ray": ("ShaderNodeLightPath", "Is Camera Ray"),    # 1 for camera rays, else 0
+    "incoming": ("ShaderNodeNewGeometry", "Incoming"),            # toward the viewer, world space
+    "position": ("ShaderNodeNewGeometry", "Position"),            # the shading point, world space (scene units)
+}
 _COLUMN_WIDTH = 220.0
 _ROW_HEIGHT = 170.0
 
@@ -140,6 +149,34 @@ class GraphBuilder:
             return self._vector_math("ABSOLUTE", a, label=label)
         return self._math("ABSOLUTE", a, label=label)
 
+    def floor(self, a: Operand, *, label: str = "") -> Socket:
+        """floor(a) (per component for vectors)."""
+        if _is_vector(a):
+            return self._vector_math("FLOOR", a, label=label)
+        return self._math("FLOOR", a, label=label)
+
+    def sine(self, a: Operand, *, label: str = "") -> Socket:
+        """sin(a), a in rad (scalar)."""
+        return self._math("SINE", a, label=label)
+
+    def arctan2(self, y: Operand, x: Operand, *, label: str = "") -> Socket:
+        """atan2(y, x) in rad (scalar)."""
+        return self._math("ARCTAN2", y, x, label=label)
+
+    def greater_than(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """1.0 if a > b else 0.0 (scalar)."""
+        return self._math("GREATER_THAN", a, b, label=label)
+
+    def cross(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """a x b (vectors)."""
+        return self._vector_math("CROSS_PRODUCT", a, b, label=label)
+
+    def length(self, a: Operand, *, label: str = "") -> Socket:
+        """|a| (a vector), a scalar."""
+        node = self.node("ShaderNodeVectorMath", operation="LENGTH", label=label)
+        self._feed(node, node.inputs[0], a)
+        return node.outputs["Value"]
+
     def sign(self, a: Operand, *, label: str = "") -> Socket:
         """sign(a): -1, 0 or 1 (scalar)."""
         return self._math("SIGN", a, label=label)
@@ -207,12 +244,6 @@ class GraphBuilder:
 
     # -- constants and channels ---------------------------------------------------------------------
 
-    def const(self, value: float, *, label: str = "") -> Socket:
-        """A Value node holding ``value`` (use plain numbers as operands instead where a node is not wanted)."""
-        node = self.node("ShaderNodeValue", label=label)
-        node.outputs[0].default_value = float(value)
-        return node.outputs[0]
-
     def separate(self, colour: Operand, *, label: str = "") -> tuple[Socket, Socket, Socket]:
         """The three components of a colour or vector (Separate XYZ: no colour-space conversion)."""
         node = self.node("ShaderNodeSeparateXYZ", label=label)
@@ -236,6 +267,11 @@ class GraphBuilder:
         return self.combine(*channels, label=label)
 
     # -- inputs and outputs -------------------------------------------------------------------------
+
+    def shading_input(self, name: str, *, label: str = "") -> Socket:
+        """What the shading point knows, by name (:data:`SHADING_INPUTS`): a new input node's output each call."""
+        bl_idname, output = SHADING_INPUTS[name]
+        return self.node(bl_idname, label=label or output).outputs[output]
 
     def texel(self, image: bpy.types.Image | None, u: Operand, v: Operand, *, label: str = "") -> Socket:
         """The colour of ``image`` at texture coordinates (u, v), unfiltered (Closest; edges extended). Callers
@@ -289,7 +325,6 @@ class GraphBuilder:
 _COMPOSITOR_GROUP_API = "compositing_node_group" in bpy.types.Scene.bl_rna.properties
 COMPOSITOR_MATH = "ShaderNodeMath" if _COMPOSITOR_GROUP_API else "CompositorNodeMath"
 COMPOSITOR_SEPARATE_XYZ = "ShaderNodeSeparateXYZ" if _COMPOSITOR_GROUP_API else "CompositorNodeSeparateXYZ"
-COMPOSITOR_VALUE = "ShaderNodeValue" if _COMPOSITOR_GROUP_API else "CompositorNodeValue"
 COMPOSITOR_COMBINE_XYZ = "ShaderNodeCombineXYZ" if _COMPOSITOR_GROUP_API else "CompositorNodeCombineXYZ"
 
 
@@ -396,19 +431,22 @@ class ChannelGraphBuilder(GraphBuilder):
         partial = self._math("MULTIPLY_ADD", a[1], b[1], partial)
         return self._math("MULTIPLY_ADD", a[2], b[2], partial, label=label)
 
+    def length(self, a: Operand, *, label: str = ""):
+        return self._math("SQRT", self.dot(a, a), label=label)
+
+    def cross(self, a: Operand, b: Operand, *, label: str = "") -> tuple:
+        (ax, ay, az), (bx, by, bz) = self._channels(a), self._channels(b)
+        return (self.sub(self.mul(ay, bz), self.mul(az, by)), self.sub(self.mul(az, bx), self.mul(ax, bz)),
+                self.sub(self.mul(ax, by), self.mul(ay, bx)))
+
     def normalize(self, a: Operand, *, label: str = "") -> tuple:
         """a / |a| (the zero vector stays zero: Blender's divide gives 0 where the length is 0)."""
-        length = self._math("SQRT", self.dot(a, a), label=f"|{label}|" if label else "")
+        length = self.length(a, label=f"|{label}|" if label else "")
         return self._per_component("DIVIDE", a, length, label=label)
 
     def mix(self, factor: Operand, a: Operand, b: Operand, *, label: str = ""):
         """a + factor (b - a), per component if a or b is a colour."""
         return self.multiply_add(factor, self.sub(b, a), a, label=label)
-
-    def const(self, value: float, *, label: str = "") -> Socket:
-        node = self.node(COMPOSITOR_VALUE, label=label)
-        node.outputs[0].default_value = float(value)
-        return node.outputs[0]
 
     def separate(self, colour: Operand, *, label: str = "") -> tuple:
         return self._channels(colour)
@@ -446,3 +484,128 @@ class ChannelGraphBuilder(GraphBuilder):
                   label: str = ""):
         """The parameter ``name`` from the mapping given to the builder (a KeyError names a missing one)."""
         return self.parameters[name]
+
+
+# -- the numpy backend ----------------------------------------------------------------------------------
+
+
+def _safe_divide(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.divide(a, b, out=np.zeros(np.broadcast_shapes(a.shape, b.shape), np.float32), where=b != 0.0)
+
+
+def _safe_power(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Blender's Math Power: a^b, 0 where a < 0 and b is not a whole number."""
+    whole = np.floor(b) == b
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        result = np.power(a, b)
+    return np.where((a >= 0.0) | whole, result, np.float32(0.0))
+
+
+#: The shading inputs that are vectors (the others are scalars).
+_VECTOR_INPUTS = {"incoming", "position"}
+#: Math operations as Blender's SVM computes them, in float32 (divide by 0 and sqrt of a negative give 0).
+_ARRAY_MATH: dict[str, Callable[..., np.ndarray]] = {
+    "ADD": np.add,
+    "SUBTRACT": np.subtract,
+    "MULTIPLY": np.multiply,
+    "DIVIDE": _safe_divide,
+    "MULTIPLY_ADD": lambda a, b, c: a * b + c,
+    "MINIMUM": np.minimum,
+    "MAXIMUM": np.maximum,
+    "ABSOLUTE": np.abs,
+    "SIGN": np.sign,
+    "FLOOR": np.floor,
+    "SQRT": lambda a: np.sqrt(np.maximum(a, np.float32(0.0))),
+    "EXPONENT": np.exp,
+    "POWER": _safe_power,
+    "SINE": np.sin,
+    "ARCTAN2": np.arctan2,
+    "LESS_THAN": lambda a, b: (a < b).astype(np.float32),
+    "GREATER_THAN": lambda a, b: (a > b).astype(np.float32),
+}
+
+
+class ArrayBuilder(ChannelGraphBuilder):
+    """The same equations evaluated in numpy: the functions that build the node groups (``scattering_terms``,
+    ``dome_distances``, ``balanced_terms``...) run on this builder and return arrays instead of sockets, so what a
+    group computes is a Python value the tests compare with the physics core and with Blender's renders: one
+    source for each equation, evaluated two ways.
+
+    Every operation is the float32 arithmetic of Blender's node (:data:`_ARRAY_MATH`: a divide by 0 gives 0, the
+    Gamma node leaves channels <= 0 unchanged); a scalar is an array, a vector or colour three arrays (as in
+    :class:`ChannelGraphBuilder`). ``parameters`` are the group's parameters by property name (what
+    :func:`~.parameters.shader_parameter_values` writes; a missing one reads 0, as Blender's Attribute node does),
+    ``inputs`` the shading point's values by :data:`SHADING_INPUTS` name (arrays, (N,) or (N, 3)), ``images`` the
+    pixels of the images the graph samples by name ((height, width, 4) arrays, row 0 at the bottom).
+    """
+
+    def __init__(self, parameters: Mapping[str, float | Sequence[float]], inputs: Mapping[str, np.ndarray],
+                 images: Mapping[str, np.ndarray] | None = None) -> None:
+        GraphBuilder.__init__(self, None)
+        self.parameters = {name: self._value(value, np.ndim(value) == 1 and len(value) == 3)
+                           for name, value in parameters.items()}
+        self.inputs = {name: self._value(value, name in _VECTOR_INPUTS) for name, value in inputs.items()}
+        self.images = dict(images or {})
+
+    @staticmethod
+    def _value(value, vector: bool) -> np.ndarray | tuple:
+        array = np.asarray(value, dtype=np.float32)
+        if vector:
+            if array.shape[-1:] != (3,):
+                raise ValueError(f"expected vectors of three components (..., 3); got shape {array.shape}")
+            return tuple(array[..., c] for c in range(3))
+        return array
+
+    @staticmethod
+    def array(value) -> np.ndarray:
+        """A result as one float32 array: a vector or colour (N, 3) (components stacked), a scalar (N,)."""
+        if _is_vector(value):
+            parts = np.broadcast_arrays(*(np.asarray(v, dtype=np.float32) for v in value))
+            return np.stack(parts, axis=-1)
+        return np.asarray(value, dtype=np.float32)
+
+    def node(self, bl_idname: str, *, label: str = "", depth: int | None = None, **properties):
+        raise TypeError(f"the numpy builder evaluates equations and builds no node ({bl_idname}, {label!r})")
+
+    def _math(self, operation: str, *operands: Operand, label: str = "") -> np.ndarray:
+        arrays = [np.asarray(value, dtype=np.float32) for value in operands]
+        return np.asarray(_ARRAY_MATH[operation](*arrays), dtype=np.float32)
+
+    def power_per_channel(self, colour: Operand, exponent: Operand, *, label: str = "") -> tuple:
+        """The Gamma node: c^exponent where c > 0, c unchanged elsewhere, 1 for an exponent of 0."""
+        x = np.asarray(exponent, dtype=np.float32)
+
+        def gamma(c):
+            c = np.asarray(c, dtype=np.float32)
+            with np.errstate(divide="ignore", over="ignore"):
+                raised = np.where(c > 0.0, np.power(np.maximum(c, np.float32(1e-38)), x), c)
+            return np.where(x == 0.0, np.float32(1.0), raised).astype(np.float32)
+
+        return tuple(gamma(c) for c in self._channels(colour))
+
+    def shading_input(self, name: str, *, label: str = ""):
+        if name not in SHADING_INPUTS:
+            raise KeyError(f"unknown shading input {name!r}; known: {', '.join(SHADING_INPUTS)}")
+        return self.inputs[name]
+
+    def attribute(self, name: str, *, attribute_type: str = "VIEW_LAYER", output: str = "Color", label: str = ""):
+        value = self.parameters.get(name, np.float32(0.0))
+        if output == "Fac":
+            return (value[0] + value[1] + value[2]) / np.float32(3.0) if _is_vector(value) else value
+        return value if _is_vector(value) else (value, value, value)
+
+    def texel(self, image, u: Operand, v: Operand, *, label: str = "") -> tuple:
+        """The image's texel at (u, v), unfiltered with extended edges (Closest), as Cycles samples it; black where
+        the graph has no image."""
+        pixels = None if image is None else self.images.get(getattr(image, "name", image))
+        if pixels is None:
+            zero = np.zeros(np.broadcast_shapes(np.shape(u), np.shape(v)), np.float32)
+            return (zero, zero, zero)
+        height, width = pixels.shape[:2]
+        column = np.clip(np.floor(np.asarray(u, np.float32) * width), 0, width - 1).astype(np.int64)
+        row = np.clip(np.floor(np.asarray(v, np.float32) * height), 0, height - 1).astype(np.int64)
+        texel = pixels[row, column]
+        return tuple(np.asarray(texel[..., c], dtype=np.float32) for c in range(3))
+
+    def layout(self, *, origin: tuple[float, float] = (0.0, 0.0)) -> None:
+        raise TypeError("the numpy builder has no nodes to lay out")

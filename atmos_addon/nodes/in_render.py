@@ -31,16 +31,14 @@ import math
 
 import bpy
 
-from . import parameters
+from . import parameters, stamps
 from .aerial_perspective import ensure_aerial_perspective_group
-from .terms import AerialFeatures
 from .dome import dome_distances, view_direction
 from .graph import GraphBuilder, Socket
+from .terms import AerialFeatures
 
-SURFACE_GROUP_NAME = "Atmos In-Render Surface"
-SKY_GROUP_NAME = "Atmos In-Render Sky"
-#: Bump when a tree these builders make changes; stale trees are rebuilt in place.
-IN_RENDER_GROUP_VERSION = 3  # 3: the dome's square roots by one Gamma node
+SURFACE_GROUP_NAME = stamps.IN_RENDER_SURFACE.name
+SKY_GROUP_NAME = stamps.IN_RENDER_SKY.name
 #: The compensation exp(tau) is capped here: exp(60) = 1.1e26 keeps a bright sky (1e5 W/(m^2 sr), the sun's
 #: disk) times the factor below float32's 3.4e38, and exp(-60) = 8.8e-27 above its smallest normal 1.2e-38.
 #: Where the real depth is larger (the horizon in thick haze) the in-render sky is darker than the sky.
@@ -48,8 +46,6 @@ MAX_COMPENSATED_OPTICAL_DEPTH = 60.0
 #: Smallest F_ex the surface emission divides by: exp(-60), for the same reason.
 MIN_TRANSMITTANCE = math.exp(-MAX_COMPENSATED_OPTICAL_DEPTH)
 SPECIES = ("MOLECULES", "AEROSOLS")
-_VERSION_KEY = "atmos_version"
-_FEATURES_KEY = "atmos_features"
 
 
 def _ray_mask(g: GraphBuilder) -> Socket:
@@ -57,25 +53,6 @@ def _ray_mask(g: GraphBuilder) -> Socket:
     path = g.node("ShaderNodeLightPath", label="Light Path")
     camera_or_glossy = g.max(path.outputs["Is Camera Ray"], path.outputs["Is Glossy Ray"])
     return g.max(camera_or_glossy, path.outputs["Is Transmission Ray"], label="camera | glossy | transmission")
-
-
-def _stamp(tree: bpy.types.NodeTree, key: str) -> None:
-    tree[_VERSION_KEY] = IN_RENDER_GROUP_VERSION
-    tree[_FEATURES_KEY] = key
-
-
-def _is_current(tree: bpy.types.NodeTree, key: str) -> bool:
-    return tree.get(_VERSION_KEY) == IN_RENDER_GROUP_VERSION and tree.get(_FEATURES_KEY) == key
-
-
-def _group(name: str) -> bpy.types.ShaderNodeTree:
-    tree = bpy.data.node_groups.get(name)
-    if tree is None:
-        return bpy.data.node_groups.new(name, "ShaderNodeTree")
-    if tree.bl_idname != "ShaderNodeTree":
-        raise TypeError(f'Node group "{name}" exists but is a {tree.bl_idname}, not a shader node group; '
-                        f"rename or delete it, then apply Atmos again")
-    return tree
 
 
 def _socket(tree, name: str, in_out: str, socket_type: str, description: str, default=None):
@@ -115,14 +92,14 @@ def build_surface_group(tree: bpy.types.ShaderNodeTree, segment_group: bpy.types
     tree.links.new(add.outputs["Shader"], output.inputs["Shader"])
     g.set_depth(output, g.max_depth + 1)
     g.layout()
-    _stamp(tree, segment_group.get(_FEATURES_KEY, ""))
+    stamps.stamp(tree, stamps.IN_RENDER_SURFACE, segment_group.get(stamps.FEATURES_KEY, ""))
 
 
 def ensure_surface_group(features: AerialFeatures) -> bpy.types.ShaderNodeTree:
     """Get or (re)build the "Atmos In-Render Surface" group (and the Ray Segment aerial group inside it)."""
     segment_group = ensure_aerial_perspective_group(features, distance="RAY")
-    tree = _group(SURFACE_GROUP_NAME)
-    if not (_is_current(tree, features.key)
+    tree = stamps.group(stamps.IN_RENDER_SURFACE)
+    if not (stamps.is_current(tree, stamps.IN_RENDER_SURFACE, features.key)
             and any(n.bl_idname == "ShaderNodeGroup" and n.node_tree == segment_group for n in tree.nodes)):
         build_surface_group(tree, segment_group)
     return tree
@@ -159,13 +136,13 @@ def build_sky_group(tree: bpy.types.ShaderNodeTree, features: AerialFeatures) ->
     tree.links.new(g.mul(group_in.outputs["Color"], gain, label="Color * compensation"), output.inputs["Color"])
     g.set_depth(output, g.max_depth + 1)
     g.layout()
-    _stamp(tree, features.key)
+    stamps.stamp(tree, stamps.IN_RENDER_SKY, features.key)
 
 
 def ensure_sky_group(features: AerialFeatures) -> bpy.types.ShaderNodeTree:
     """Get or (re)build the "Atmos In-Render Sky" compensation group."""
-    tree = _group(SKY_GROUP_NAME)
-    if not _is_current(tree, features.key):
+    tree = stamps.group(stamps.IN_RENDER_SKY)
+    if not stamps.is_current(tree, stamps.IN_RENDER_SKY, features.key):
         build_sky_group(tree, features)
     return tree
 
@@ -235,5 +212,4 @@ def build_dome_volume(tree: bpy.types.ShaderNodeTree, species: str) -> None:
     tree.links.new(crossing.outputs["BSDF"], output.inputs["Surface"])
     g.set_depth(output, g.max_depth + 1)
     g.layout()
-    tree[_VERSION_KEY] = IN_RENDER_GROUP_VERSION
-    tree[_FEATURES_KEY] = species
+    stamps.stamp(tree, stamps.DOME_VOLUME, species)

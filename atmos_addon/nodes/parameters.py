@@ -23,6 +23,8 @@ from collections.abc import Sequence
 
 import bpy
 
+from ..physics import atmosphere, balanced, precise, sun
+
 #: Rayleigh scattering coefficient beta_R per channel, 1/m.
 BETA_RAYLEIGH = "atmos_beta_rayleigh"
 #: Mie scattering coefficient beta_M per channel, 1/m.
@@ -76,18 +78,18 @@ SUN_PARAMETER_NAMES = (SUN_DIRECTION, SUN_IRRADIANCE, SUN_OPTICAL_DEPTH_RAYLEIGH
 PARAMETER_NAMES = (*AERIAL_PARAMETER_NAMES, SUN_ANGULAR_RADIUS, SUN_LIMB_DARKENING, GROUND_ALBEDO,
                    *PRECISE_PARAMETER_NAMES)
 
-#: Defaults of the dome and sun parameters: the physics core's default (Earth) ``Atmosphere`` and sun
-#: (``atmos_addon.physics``; a test checks they agree). Callers written before the sky existed get these.
-DEFAULT_PLANET_RADIUS_M = 6_360_000.0
-DEFAULT_RAYLEIGH_SCALE_HEIGHT_M = 8434.50888064715
-DEFAULT_MIE_SCALE_HEIGHT_M = 1200.0
-DEFAULT_SUN_ANGULAR_RADIUS_RAD = math.radians(0.2666)
-DEFAULT_SUN_LIMB_DARKENING = 0.6
-DEFAULT_GROUND_ALBEDO = (0.18, 0.2, 0.15)
+#: Defaults of the dome and sun parameters: the physics core's default (Earth) ``Atmosphere`` and sun.
+#: Callers written before the sky existed get these.
+DEFAULT_PLANET_RADIUS_M = atmosphere.DEFAULT_PLANET_RADIUS_M
+DEFAULT_RAYLEIGH_SCALE_HEIGHT_M = atmosphere.DEFAULT_RAYLEIGH_SCALE_HEIGHT_M
+DEFAULT_MIE_SCALE_HEIGHT_M = atmosphere.DEFAULT_MIE_SCALE_HEIGHT_M
+DEFAULT_SUN_ANGULAR_RADIUS_RAD = sun.SUN_ANGULAR_RADIUS_RAD
+DEFAULT_SUN_LIMB_DARKENING = sun.SUN_LIMB_DARKENING
+DEFAULT_GROUND_ALBEDO = precise.DEFAULT_GROUND_ALBEDO
 #: |g| is kept below this so the Henyey-Greenstein phase stays finite in float32.
 MAX_ABS_MIE_G = 0.999
-#: Cap on the sun's optical depths (``physics.balanced.MAX_SUN_OPTICAL_DEPTH``): inf when the sun is set.
-MAX_SUN_OPTICAL_DEPTH = 50.0
+#: Cap on the sun's optical depths: inf when the sun is set.
+MAX_SUN_OPTICAL_DEPTH = balanced.MAX_SUN_OPTICAL_DEPTH
 
 
 def _triple(name: str, value: Sequence[float] | float) -> tuple[float, float, float]:
@@ -111,7 +113,7 @@ def _nonnegative(name: str, value: Sequence[float] | float) -> tuple[float, floa
     return triple
 
 
-def write_shader_parameters(scene: bpy.types.Scene, *, beta_rayleigh: Sequence[float], beta_mie: Sequence[float],
+def shader_parameter_values(*, beta_rayleigh: Sequence[float], beta_mie: Sequence[float],
                             beta_mie_absorption: Sequence[float], mie_g: Sequence[float] | float,
                             sun_direction: Sequence[float], sun_irradiance: Sequence[float] | float,
                             metres_per_unit: float, planet_radius: float = DEFAULT_PLANET_RADIUS_M,
@@ -122,8 +124,9 @@ def write_shader_parameters(scene: bpy.types.Scene, *, beta_rayleigh: Sequence[f
                             ground_albedo: Sequence[float] | float = DEFAULT_GROUND_ALBEDO,
                             origin_altitude: float = 0.0,
                             sun_optical_depth_rayleigh: Sequence[float] | float = 0.0,
-                            sun_optical_depth_mie: Sequence[float] | float = 0.0) -> None:
-    """Store the aerial-perspective and sky parameters as custom properties of ``scene`` (plain numbers in).
+                            sun_optical_depth_mie: Sequence[float] | float = 0.0) -> dict[str, tuple | float]:
+    """The aerial-perspective and sky parameters by property name, checked (plain numbers in): what
+    :func:`write_shader_parameters` stores and what :class:`~.graph.ArrayBuilder` evaluates the groups with.
 
     ``sun_direction`` is normalised here; ``mie_g`` is clamped to +-:data:`MAX_ABS_MIE_G`. Lengths are m,
     the sun's angular radius rad (in (0, pi/2)), the limb darkening in [0, 1]. The keyword arguments with
@@ -160,7 +163,12 @@ def write_shader_parameters(scene: bpy.types.Scene, *, beta_rayleigh: Sequence[f
         SUN_OPTICAL_DEPTH_MIE: tuple(min(v, MAX_SUN_OPTICAL_DEPTH) for v in _nonnegative(
             SUN_OPTICAL_DEPTH_MIE, sun_optical_depth_mie)),
     }
-    for name, value in values.items():
+    return values
+
+
+def write_shader_parameters(scene: bpy.types.Scene, **values) -> None:
+    """Store :func:`shader_parameter_values` (same keywords) as custom properties of ``scene``."""
+    for name, value in shader_parameter_values(**values).items():
         # Assign only on change: a write re-tags the scene, and keyframed values must not be clobbered needlessly.
         if name not in scene or _as_tuple(scene[name]) != _as_tuple(value):
             scene[name] = value

@@ -39,23 +39,19 @@ from __future__ import annotations
 
 import bpy
 
-from . import parameters
-from .terms import AerialFeatures, scattering_terms
+from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_VIEW
+from . import parameters, stamps
 from .balanced import PER_PIXEL_PIECES, PER_PIXEL_SUN_AT, balanced_terms
-from .precise import precise_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction
 from .graph import COMPOSITOR_SEPARATE_XYZ, ChannelGraphBuilder
+from .precise import precise_terms
+from .surface import DISTANCE_AOV_UNIT_M
+from .terms import AerialFeatures, scattering_terms
 
-GROUP_NAME = "Atmos Aerial Composite (Per Pixel)"
-#: Bump when the tree changes; stale trees are rebuilt in place (the interface, and the drivers on it, stay).
-GROUP_VERSION = 4
-VERSION_KEY = "atmos_version"
-FEATURES_KEY = "atmos_features"
-
-AOV_DISTANCE = "atmos_distance"
-AOV_VIEW = "atmos_view"
-#: Metres per unit of the distance AOV.
-DISTANCE_AOV_UNIT_M = 1000.0
+GROUP_NAME = stamps.PER_PIXEL.name
+#: The stamp the group carries its feature key in (stale groups are rebuilt in place: the interface, and the drivers
+#: on it, stay).
+FEATURES_KEY = stamps.FEATURES_KEY
 
 #: Levels the group evaluates.
 LEVELS = ("fast", "balanced", "precise")
@@ -87,7 +83,7 @@ CAMERA_SOCKET = ("Camera z (units)", "camera.matrix_world[3][2]")
 #: Inputs fed from the Render Layers node: (socket, AOV or pass name, socket type).
 IMAGE_INPUTS = (
     ("Image", "Image", "NodeSocketColor"),
-    ("Coverage", "atmos_coverage", "NodeSocketFloat"),
+    ("Coverage", AOV_COVERAGE, "NodeSocketFloat"),
     ("Distance", AOV_DISTANCE, "NodeSocketFloat"),
     ("View", AOV_VIEW, "NodeSocketVector"),
 )
@@ -164,20 +160,14 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
     g._feed(output, output.inputs["Image"], combine.outputs["Image"])
     g.prune()
     g.layout()
-    tree[VERSION_KEY] = GROUP_VERSION
-    tree[FEATURES_KEY] = features.key
+    stamps.stamp(tree, stamps.PER_PIXEL, features.key)
 
 
 def ensure_per_pixel_group(features: AerialFeatures, composite_group: bpy.types.NodeTree) -> bpy.types.NodeTree:
     """Get or create the per-pixel compositor group for ``features``; rebuilt in place when its version or features
     are stale, so group nodes keep their links (the caller re-drives the inputs: a new interface has new sockets,
     and only the Precise level's group reads the table parameters)."""
-    tree = bpy.data.node_groups.get(GROUP_NAME)
-    if tree is not None and tree.bl_idname != "CompositorNodeTree":
-        raise TypeError(f'Node group "{GROUP_NAME}" exists but is a {tree.bl_idname}, not a compositor group; '
-                        f"rename or delete it, then apply Atmos again")
-    if tree is None:
-        tree = bpy.data.node_groups.new(GROUP_NAME, "CompositorNodeTree")
-    if tree.get(VERSION_KEY) != GROUP_VERSION or tree.get(FEATURES_KEY) != features.key:
+    tree = stamps.group(stamps.PER_PIXEL)
+    if not stamps.is_current(tree, stamps.PER_PIXEL, features.key):
         build_per_pixel_composite(tree, features, composite_group)
     return tree

@@ -28,16 +28,18 @@ import math
 
 import bpy
 
+from ..physics.aerial_perspective import SMALL_OPTICAL_DEPTH
+from ..physics.precise import DEFAULT_SHAPE
 from . import parameters
-from .balanced import SMALL_OPTICAL_DEPTH, branch_large
+from .balanced import branch_large
 from .dome import cos_theta_to_sun, sun_direction
 from .graph import GraphBuilder, Socket
 from .terms import phase_henyey_greenstein, phase_rayleigh
 
 #: Name of the image the add-on bakes the tables into (packed into the .blend).
 IMAGE_NAME = "Atmos Precise Table"
-#: Table shape the graph samples (``physics.precise.DEFAULT_SHAPE``; a test checks they agree).
-ALTITUDES, AZIMUTHS, DISTANCES = 65, 8, 32
+#: Table shape the graph samples: the one the core bakes.
+ALTITUDES, AZIMUTHS, DISTANCES = DEFAULT_SHAPE.altitudes, DEFAULT_SHAPE.azimuths, DEFAULT_SHAPE.distances
 
 
 def table_image() -> bpy.types.Image | None:
@@ -79,8 +81,8 @@ class _Bilinear:
     def __init__(self, g: GraphBuilder, x0: Socket, y0: Socket, column: Socket, row: Socket, width: Socket,
                  height: Socket, whole_row: bool = False) -> None:
         self.g = g
-        column_floor = g._math("FLOOR", column, label="floor(col)")
-        row_floor = row if whole_row else g._math("FLOOR", row, label="floor(row)")
+        column_floor = g.floor(column, label="floor(col)")
+        row_floor = row if whole_row else g.floor(row, label="floor(row)")
         self.f_column = g.sub(column, column_floor, label="col fraction")
         self.f_row = None if whole_row else g.sub(row, row_floor, label="row fraction")
         self.x = g.add(g.add(x0, 0.5), column_floor, label="x0 + floor(col) + 0.5")
@@ -145,8 +147,8 @@ def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket, to_top: So
 
     cross = g.abs(g.sub(g.mul(vx, sy), g.mul(vy, sx)), label="|v x l|_z")
     dot = g.multiply_add(vx, sx, g.mul(vy, sy), label="(v . l)_xy")
-    azimuth = g.mul(g._math("ARCTAN2", cross, dot), (AZIMUTHS - 1) / math.pi, label="a")
-    a0 = g.min(g._math("FLOOR", azimuth), float(AZIMUTHS - 2), label="a0")
+    azimuth = g.mul(g.arctan2(cross, dot), (AZIMUTHS - 1) / math.pi, label="a")
+    a0 = g.min(g.floor(azimuth), float(AZIMUTHS - 2), label="a0")
     fa = g.sub(azimuth, a0, label="a - a0")
     column = g.mul(g.min(g.sqrt(g.div(s, d_max)), 1.0), float(DISTANCES - 1), label="col")
     bilinear = _Bilinear(g, x0, y0, column, row, width, height, whole_row=whole_row is not None)

@@ -40,23 +40,21 @@ import math
 from dataclasses import dataclass
 
 import bpy
+import numpy as np
 
-from . import parameters
+from . import parameters, stamps
 from .terms import AerialFeatures, scattering_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction, view_direction
-from .graph import GraphBuilder, Socket
+from .graph import ArrayBuilder, GraphBuilder, Socket
 from .precise import ALTITUDES, distance_to_top, precise_terms, tile_camera
 
 #: Name of the world node group in ``bpy.data.node_groups``.
-SKY_GROUP_NAME = "Atmos Sky"
+SKY_GROUP_NAME = stamps.SKY.name
 #: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
-SKY_GROUP_VERSION = 3  # 2: the layered dome; 3: powers, no phi1 (the aerial group's scattering_terms)
 OUTPUT_RADIANCE = "Radiance"
 GROUND_MODES = ("ALBEDO", "BLACK")
 #: Where the scattering comes from: the virtual dome ("fast", every level but Precise) or the Precise level's table.
 SKY_LEVELS = ("fast", "precise")
-_VERSION_KEY = "atmos_version"
-_FEATURES_KEY = "atmos_features"
 
 
 @dataclass(frozen=True)
@@ -78,6 +76,13 @@ class SkyFeatures:
         if self.level not in SKY_LEVELS:
             raise ValueError(f"SkyFeatures.level must be one of {SKY_LEVELS}; got {self.level!r}")
 
+    @classmethod
+    def from_key(cls, key: str) -> "SkyFeatures":
+        """The features a :attr:`key` names (a stamped group's, to rebuild it as it was)."""
+        tokens = set(str(key).split("+"))
+        return cls(mie="mie" in tokens, absorption="abs" in tokens, ground="ALBEDO" if "ground" in tokens else "BLACK",
+                   level="precise" if "precise" in tokens else "fast")
+
     @property
     def aerial(self) -> AerialFeatures:
         """The scattering terms, as the aerial group names them."""
@@ -98,11 +103,6 @@ class SkyFeatures:
 # -- the quantities ------------------------------------------------------------------------------------
 
 
-def _math(g: GraphBuilder, operation: str, *operands, label: str = "") -> Socket:
-    """A scalar Math node the builder has no named helper for (SINE, GREATER_THAN)."""
-    return g._math(operation, *operands, label=label)
-
-
 def sun_disk(g: GraphBuilder, view: Socket, view_z: Socket, sun: Socket, mu: Socket) -> Socket:
     """L_disk per channel: E_sun / Omega times the limb darkening, inside the disk, above the horizon, camera rays.
 
@@ -110,16 +110,13 @@ def sun_disk(g: GraphBuilder, view: Socket, view_z: Socket, sun: Socket, mu: Soc
     float32). Inside: sin t < sin r and mu > 0.
     """
     radius = g.attribute(parameters.SUN_ANGULAR_RADIUS, output="Fac", label="r")
-    sin_r = _math(g, "SINE", radius, label="sin r")
-    cross = g._vector_math("CROSS_PRODUCT", view, sun, label="v x l")
-    length = g.node("ShaderNodeVectorMath", operation="LENGTH", label="sin t")
-    g._feed(length, length.inputs[0], cross)
-    sin_t = length.outputs["Value"]
-    inside = g.mul(g.less_than(sin_t, sin_r), _math(g, "GREATER_THAN", mu, 0.0), label="in disk")
-    above = _math(g, "GREATER_THAN", view_z, 0.0, label="above horizon")
-    camera = g.node("ShaderNodeLightPath", label="Light Path").outputs["Is Camera Ray"]
+    sin_r = g.sine(radius, label="sin r")
+    sin_t = g.length(g.cross(view, sun, label="v x l"), label="sin t")
+    inside = g.mul(g.less_than(sin_t, sin_r), g.greater_than(mu, 0.0), label="in disk")
+    above = g.greater_than(view_z, 0.0, label="above horizon")
+    camera = g.shading_input("is_camera_ray", label="Light Path")
     mask = g.mul(g.mul(inside, above), camera, label="disk mask")
-    sin_half = _math(g, "SINE", g.mul(radius, 0.5), label="sin(r/2)")
+    sin_half = g.sine(g.mul(radius, 0.5), label="sin(r/2)")
     solid_angle = g.mul(g.mul(sin_half, sin_half), 4.0 * math.pi, label="Omega")
     rho = g.div(sin_t, g.max(sin_r, 1.0e-9), label="sin t / sin r")
     mu_e = g.sqrt(g.max(g.sub(1.0, g.mul(rho, rho)), 0.0), label="mu_e")
@@ -181,16 +178,38 @@ def start_radiance_graph(tree: bpy.types.ShaderNodeTree, description: str) -> tu
     tree.nodes.clear()
     ensure_radiance_output(tree, description)
     g = GraphBuilder(tree)
+    return g, sky_ray(g)
+
+
+def sky_ray(g: GraphBuilder) -> SkyRay:
+    """The ray's inputs on any builder: v from the shading point, l from the parameters, mu = v . l."""
     view = view_direction(g)
     _, _, view_z = g.separate(view, label="v")
     sun = sun_direction(g)
-    return g, SkyRay(view, view_z, sun, cos_theta_to_sun(g, view, sun))
+    return SkyRay(view, view_z, sun, cos_theta_to_sun(g, view, sun))
 
 
 def build_sky(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
     """Clear ``tree``'s nodes and build the sky graph for ``features`` (interface kept)."""
     g, ray = start_radiance_graph(
         tree, "Sky radiance along the view ray (sky, sun disk, ground): feed a Background shader")
+    finish_radiance_group(g, sky_radiance(g, features, ray), stamps.SKY, features)
+
+
+def evaluate(features: SkyFeatures, parameter_values, *, view_direction, is_camera_ray=1.0, images=None):
+    """What the group computes, in numpy float32: the radiance (N, 3) along the unit ``view_direction`` (N, 3)
+    (``is_camera_ray`` 0 hides the sun's disk, as for the rays that light the scene); ``parameter_values`` are
+    :func:`~.parameters.shader_parameter_values`, ``images`` the Precise table's pixels by image name."""
+    direction = np.asarray(view_direction, dtype=np.float64)
+    camera = np.broadcast_to(np.asarray(is_camera_ray, dtype=np.float32), direction.shape[:-1])
+    g = ArrayBuilder(parameter_values, {"incoming": -direction, "is_camera_ray": camera}, images)
+    radiance = sky_radiance(g, features, sky_ray(g))
+    return np.broadcast_to(g.array(radiance), direction.shape)
+
+
+def sky_radiance(g: GraphBuilder, features: SkyFeatures, ray: SkyRay) -> Socket:
+    """The sky's radiance along ``ray`` for ``features`` on any builder: the dome or Precise sky, the sun's disk
+    and, with ``ground="ALBEDO"``, the lit ground below the horizon."""
     view, view_z, sun, mu = ray.view, ray.view_z, ray.sun, ray.mu
     if features.level == "precise":
         length, below, to_top = sky_path_length(g, view_z)
@@ -206,43 +225,32 @@ def build_sky(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
         _, _, sun_z = g.separate(sun, label="l")
         below = below if below is not None else g.less_than(view_z, 0.0, label="below horizon")
         radiance = g.add(radiance, ground(g, below, sun_z, f_ex), label="sky + disk + ground")
-    finish_radiance_group(g, radiance, SKY_GROUP_VERSION, features)
+    return radiance
 
 
-def finish_radiance_group(g: GraphBuilder, radiance: Socket, version: int, features: SkyFeatures) -> None:
-    """Link ``radiance`` to the Radiance output, lay the tree out and stamp its ``version`` and ``features``."""
+def finish_radiance_group(g: GraphBuilder, radiance: Socket, kind: stamps.GroupKind, features: SkyFeatures) -> None:
+    """Link ``radiance`` to the Radiance output, lay the tree out and stamp it as ``kind``'s for ``features``."""
     output = g.node("NodeGroupOutput", label="Group Output")
     g.tree.links.new(radiance, output.inputs[OUTPUT_RADIANCE])
     g.set_depth(output, g.max_depth + 1)
     g.layout()
-    g.tree[_VERSION_KEY] = version
-    g.tree[_FEATURES_KEY] = features.key
-
-
-def is_stamped(tree: bpy.types.NodeTree, version: int, features: SkyFeatures) -> bool:
-    """True if :func:`finish_radiance_group` stamped ``tree`` with ``version`` and ``features``."""
-    return tree.get(_VERSION_KEY) == version and tree.get(_FEATURES_KEY) == features.key
+    stamps.stamp(g.tree, kind, features.key)
 
 
 def is_current(tree: bpy.types.NodeTree, features: SkyFeatures) -> bool:
     """True if ``tree`` was built by this version for ``features``."""
-    return is_stamped(tree, SKY_GROUP_VERSION, features)
+    return stamps.is_current(tree, stamps.SKY, features.key)
 
 
 def ensure_sky_group(features: SkyFeatures = SkyFeatures()) -> bpy.types.ShaderNodeTree:
     """Get or create the "Atmos Sky" group, rebuilt in place only if stale (worlds keep their links)."""
-    tree = bpy.data.node_groups.get(SKY_GROUP_NAME)
-    if tree is None:
-        tree = bpy.data.node_groups.new(SKY_GROUP_NAME, "ShaderNodeTree")
-    elif tree.bl_idname != "ShaderNodeTree":
-        raise TypeError(f'Node group "{SKY_GROUP_NAME}" exists but is a {tree.bl_idname}, not a shader node group; '
-                        f"rename or delete it, then apply Atmos again")
+    tree = stamps.group(stamps.SKY)
     if not is_current(tree, features):
         build_sky(tree, features)
     return tree
 
 
-#: Nodes in the sky group per feature key for this :data:`SKY_GROUP_VERSION` (group output included).
+#: Nodes in the sky group per feature key for this version (:data:`.stamps.SKY`; group output included).
 SKY_NODE_COUNTS = {"rayleigh": 75, "rayleigh+ground": 86, "rayleigh+abs": 100, "rayleigh+abs+ground": 111,
                    "rayleigh+mie": 126, "rayleigh+mie+ground": 137, "rayleigh+mie+abs": 128,
                    "rayleigh+mie+abs+ground": 139,

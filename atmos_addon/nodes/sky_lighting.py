@@ -17,7 +17,7 @@ direction and mu. The sun moves nothing in the table (mu, l_z and E_sun stay in 
 needs no re-bake; a change of the atmosphere rewrites the curves' values (:func:`write_sky_table`), never the
 tree.
 
-The world (``atmos_addon.blender.world``) mixes the two skies on Light Path > Is Camera Ray: Cycles skips the
+The world (:mod:`atmos_addon.blender.apply.world`) mixes the two skies on Light Path > Is Camera Ray: Cycles skips the
 closure branch whose mix weight is 0, with its own nodes, so camera rays run the analytic sky and every
 other ray runs this one. The table holds the analytic sky to 1.2e-4 between its samples
 (``tests/physics/test_sky_table.py``). The group belongs to one world (its table is that world's atmosphere);
@@ -34,18 +34,15 @@ import numpy as np
 from . import parameters
 from .terms import phase_henyey_greenstein, phase_rayleigh
 from .graph import GraphBuilder, Socket
-from .sky import SkyFeatures, finish_radiance_group, ground, is_stamped, start_radiance_graph
+from . import stamps
+from .sky import SkyFeatures, finish_radiance_group, ground, start_radiance_graph
 
 #: Name of a new lighting group (Blender numbers further copies: one per world).
-SKY_LIGHTING_GROUP_NAME = "Atmos Sky Lighting"
-#: Bump when the tree a given feature set builds changes; stale trees are rebuilt in place.
-SKY_LIGHTING_GROUP_VERSION = 1
+SKY_LIGHTING_GROUP_NAME = stamps.SKY_LIGHTING.name
 #: The RGB Curves nodes holding the table, by name: A_R, A_M, F_ex (``physics.sky_table.SkyLightingTable``).
 TABLE_NODES = ("Atmos table A_R", "Atmos table A_M", "Atmos table F_ex")
 #: Custom property on the tree: which atmosphere its table holds (absent: the curves are not filled yet).
 TABLE_KEY = "atmos_table_key"
-#: Custom property marking a tree as a lighting group (copies carry numbered names).
-KIND_KEY = "atmos_sky_lighting"
 
 
 def table_lookup(g: GraphBuilder, u: Socket, name: str, *, label: str) -> Socket:
@@ -74,15 +71,14 @@ def build_sky_lighting(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) ->
         f_ex = table_lookup(g, u, TABLE_NODES[2], label="F_ex(u)")
         below = g.less_than(view_z, 0.0, label="below horizon")
         radiance = g.add(radiance, ground(g, below, sun_z, f_ex), label="sky + ground")
-    finish_radiance_group(g, radiance, SKY_LIGHTING_GROUP_VERSION, features.dome)
-    tree[KIND_KEY] = True
+    finish_radiance_group(g, radiance, stamps.SKY_LIGHTING, features.dome)
     if TABLE_KEY in tree:
         del tree[TABLE_KEY]
 
 
 def is_current(tree: bpy.types.NodeTree, features: SkyFeatures) -> bool:
     """True if ``tree`` was built by this version for ``features`` (their dome terms: the level is not used)."""
-    return is_stamped(tree, SKY_LIGHTING_GROUP_VERSION, features.dome)
+    return stamps.is_current(tree, stamps.SKY_LIGHTING, features.dome.key)
 
 
 def new_sky_lighting_group(features: SkyFeatures) -> bpy.types.ShaderNodeTree:
@@ -102,7 +98,7 @@ def ensure_current(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> boo
 
 def is_sky_lighting_group(tree: bpy.types.NodeTree | None) -> bool:
     """True for a group :func:`new_sky_lighting_group` made."""
-    return tree is not None and bool(tree.get(KIND_KEY))
+    return stamps.kind_of(tree) == stamps.SKY_LIGHTING
 
 
 def write_sky_table(tree: bpy.types.ShaderNodeTree, coordinate: Sequence[float],
@@ -136,7 +132,7 @@ def write_sky_table(tree: bpy.types.ShaderNodeTree, coordinate: Sequence[float],
     tree[TABLE_KEY] = key
 
 
-#: Nodes in the lighting group per feature key for this :data:`SKY_LIGHTING_GROUP_VERSION` (group output included).
+#: Nodes in the lighting group per feature key for this :data:`.stamps.SKY_LIGHTING` (group output included).
 SKY_LIGHTING_NODE_COUNTS = {"rayleigh": 18, "rayleigh+ground": 30, "rayleigh+abs": 18, "rayleigh+abs+ground": 30,
                             "rayleigh+mie": 40, "rayleigh+mie+ground": 52, "rayleigh+mie+abs": 40,
                             "rayleigh+mie+abs+ground": 52}

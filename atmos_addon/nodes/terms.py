@@ -13,11 +13,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..physics.phase import HG_DENOMINATOR_FLOOR
 from . import parameters
 from .graph import GraphBuilder, Socket
 
-#: Floor of the Henyey-Greenstein denominator base (the physics core's ``HG_DENOMINATOR_FLOOR``).
-HG_DENOMINATOR_FLOOR = 1.0e-12
 
 
 #: Quality levels the group can be built for: the paper's constant density, or densities falling with altitude
@@ -37,6 +36,13 @@ class AerialFeatures:
         if self.level not in LEVELS:
             raise ValueError(f"AerialFeatures.level must be one of {LEVELS}; got {self.level!r}")
 
+    @classmethod
+    def from_key(cls, key: str) -> "AerialFeatures":
+        """The features a :attr:`key` names (a stamped group's, to rebuild it as it was)."""
+        tokens = set(str(key).split("+"))
+        level = next((level for level in LEVELS if level in tokens), "fast")
+        return cls(mie="mie" in tokens, absorption="abs" in tokens, level=level)
+
     @property
     def key(self) -> str:
         """A stable short name, stamped on the tree: "rayleigh", "rayleigh+mie", "rayleigh+mie+abs+balanced"..."""
@@ -54,9 +60,9 @@ def distance_m(g: GraphBuilder, source: str = "VIEW") -> Socket:
     Cycles keeps measuring from that origin across volume boundaries).
     """
     if source == "RAY":
-        length = g.node("ShaderNodeLightPath", label="Light Path").outputs["Ray Length"]
+        length = g.shading_input("ray_length", label="Light Path")
     else:
-        length = g.node("ShaderNodeCameraData", label="Camera Data").outputs["View Distance"]
+        length = g.shading_input("view_distance", label="Camera Data")
     metres_per_unit = g.attribute(parameters.METRES_PER_UNIT, output="Fac")
     return g.mul(length, metres_per_unit, label="s (m)")
 

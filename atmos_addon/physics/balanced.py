@@ -212,17 +212,32 @@ def extinction_balanced(h0_m: ArrayLike, view_dir_or_cos_zenith: ArrayLike, dist
     return np.exp(-optical_depth_segment(h0_m, view_dir_or_cos_zenith, distance_m, atm, dt, curvature, pieces))
 
 
-def sun_optical_depths_ground(sun_elevation_rad: ArrayLike, atm: Atmosphere) -> tuple[np.ndarray, np.ndarray]:
+def sun_optical_depths_ground(sun_elevation_rad: ArrayLike, atm: Atmosphere,
+                              sun_irradiance_ground: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Optical depths (tau_R, tau_M) from the ground to space toward the sun's centre, each (..., 3).
 
     Chapman function over the curved planet, capped at :data:`MAX_SUN_OPTICAL_DEPTH` (the sun behind the
     planet would be ``inf``). Computed once per frame on the CPU and fed to the shader.
+
+    With the ground sun ``sun_irradiance_ground`` (W/m^2, per channel) both depths are scaled down, per channel,
+    where E_ground exp(tau_R + tau_M) would exceed the sun above the atmosphere: the sun brightened to any altitude
+    (:func:`sun_irradiance_at_altitude`) then never passes E_top, so the shader needs no cap of its own. The ground
+    sun averages the limb-darkened disk, whose upper limb is dimmed less than the centre: near the horizon
+    E_ground exp(tau_centre) exceeds E_top by up to 12 % (the overcast preset at 4 deg).
     """
     zenith = 0.5 * np.pi - np.asarray(sun_elevation_rad, dtype=np.float64)
     zenith = np.where(ray_hits_planet(0.0, zenith, atm.planet_radius), 0.5 * np.pi, zenith)
     taus = (layer_optical_depth(0.0, zenith, atm.rayleigh_scattering, atm.rayleigh_scale_height, atm.planet_radius),
             layer_optical_depth(0.0, zenith, atm.mie_extinction, atm.mie_scale_height, atm.planet_radius))
-    return tuple(np.minimum(tau, MAX_SUN_OPTICAL_DEPTH) for tau in taus)
+    taus = tuple(np.minimum(tau, MAX_SUN_OPTICAL_DEPTH) for tau in taus)
+    if sun_irradiance_ground is None:
+        return taus
+    ground = np.asarray(sun_irradiance_ground, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        headroom = np.log(atm.sun_irradiance_top / np.maximum(ground, 1e-300))   # ln(E_top / E_ground)
+    total = taus[0] + taus[1]
+    scale = np.where(total > headroom, np.maximum(headroom, 0.0) / np.maximum(total, 1e-300), 1.0)
+    return tuple(tau * scale for tau in taus)
 
 
 def sun_irradiance_at_altitude(sun_irradiance_ground: ArrayLike, altitude_m: ArrayLike,
@@ -284,12 +299,3 @@ def inscattering_balanced(h0_m: ArrayLike, view_dir_or_cos_zenith: ArrayLike, di
         total = total + transmittance * e_sun * scattering_column * one_minus_exp_over_x(tau, dt)
         transmittance = transmittance * np.exp(-tau)
     return np.broadcast_to(total, np.broadcast_shapes(np.shape(total), mu.shape + (3,))).astype(dt)
-
-
-def aerial_perspective_balanced(l0: ArrayLike, h0_m: ArrayLike, view_dir_or_cos_zenith: ArrayLike,
-                                distance_m: ArrayLike, cos_theta: ArrayLike, atm: Atmosphere,
-                                sun_irradiance: ArrayLike, dtype: DTypeLike = np.float64) -> np.ndarray:
-    """L = L0 F_ex + L_in with the Balanced transmittance and in-scattering, shape (..., 3)."""
-    dt = np.dtype(dtype).type
-    return (np.asarray(l0, dtype=dt) * extinction_balanced(h0_m, view_dir_or_cos_zenith, distance_m, atm, dt)
-            + inscattering_balanced(h0_m, view_dir_or_cos_zenith, distance_m, cos_theta, atm, sun_irradiance, dt))

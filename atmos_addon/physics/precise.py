@@ -69,8 +69,6 @@ from .atmosphere import Atmosphere
 from .optical_depth import chapman
 from .phase import phase_hg, phase_rayleigh
 
-#: Distance sub-steps of the numerical integration between two distance columns.
-SUBSTEPS = 16
 #: Ground albedo of the multiple-scattering table when none is given (a grey, green-ish land).
 DEFAULT_GROUND_ALBEDO = (0.18, 0.2, 0.15)
 

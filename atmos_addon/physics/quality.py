@@ -220,7 +220,7 @@ def evaluate(level: Level, case: BenchCase, dtype=np.float64, sun_at_altitude: b
     if level is Level.FAST:
         return extinction(s, atm, dtype), inscattering(s, mu, atm, e_sun, dtype)
     if level is Level.BALANCED:
-        taus = sun_optical_depths_ground(np.radians(case.sun_elevation_deg), atm) if sun_at_altitude else None
+        taus = sun_optical_depths_ground(np.radians(case.sun_elevation_deg), atm, e_sun) if sun_at_altitude else None
         h0 = case.camera_altitude_m
         pieces, sun_at = (PER_PIXEL_PIECES, PER_PIXEL_SUN_AT) if per_pixel else (CURVATURE_PIECES, "lower_end")
         return (extinction_balanced(h0, views, s, atm, dtype, pieces=pieces),
@@ -330,7 +330,6 @@ class SceneSummary:
     max_view_distance_m: float = 10_000.0
     sun_elevation_deg: float = 45.0
     mie_zero: bool = False
-    absorption_zero: bool = False
     sun_animated: bool = False
     planet_radius_m: float = field(default=_EARTH_R)
 

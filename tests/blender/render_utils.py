@@ -138,6 +138,18 @@ def render_to_array(scene: bpy.types.Scene | None = None) -> np.ndarray:
     return pixels.reshape(height, width, 4)[::-1].copy()
 
 
+def route_compositor_output(scene: bpy.types.Scene, socket_name: str | None) -> None:
+    """Send a Render Layers output (or, for None, the Atmos composite) to the compositor's final output."""
+    from atmos_addon.blender.apply import compositor
+
+    tree = compositor.current_tree(scene)
+    combine = tree.nodes[compositor.COMPOSITE_NODE]
+    output = next(n for n in tree.nodes if n.bl_idname in ("NodeGroupOutput", "CompositorNodeComposite"))
+    layers = combine.inputs["Image"].links[0].from_node
+    source = combine.outputs["Image"] if socket_name is None else layers.outputs[socket_name]
+    tree.links.new(source, output.inputs[0])
+
+
 def pixel_centre_directions(camera: bpy.types.Object, width: int, height: int) -> np.ndarray:
     """World-space unit view directions through each pixel centre of a perspective camera, shape (height, width, 3).
 
@@ -202,16 +214,31 @@ def render_exr(scene: bpy.types.Scene, path: Path) -> np.ndarray:
     return pixels
 
 
+def ground_sun(scene: bpy.types.Scene, atmosphere=None) -> tuple[float, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """The sun as the add-on writes it for ``scene``: its elevation (rad), E_sun at the ground (the limb-darkened
+    disk of the scene's settings) and the Balanced level's ground optical depths (tau_R, tau_M)."""
+    from atmos_addon.blender import scene_reading, settings_io
+    from atmos_addon.physics import sun_irradiance_ground
+    from atmos_addon.physics.balanced import sun_optical_depths_ground
+
+    settings = scene.atmos
+    atmosphere = atmosphere or settings_io.atmosphere_from_settings(settings)
+    sun_dir, _ = scene_reading.sun_direction(scene)
+    elevation = math.asin(float(np.clip(sun_dir[2], -1.0, 1.0)))
+    e_sun = np.asarray(sun_irradiance_ground(elevation, atmosphere, 0.0, 0.5 * settings.sun_angular_diameter,
+                                             settings.sun_limb_darkening), dtype=float)
+    return elevation, e_sun, sun_optical_depths_ground(elevation, atmosphere, e_sun)
+
+
 def fast_segment(scene: bpy.types.Scene, direction, distance: float) -> tuple[np.ndarray, np.ndarray]:
     """(F_ex, L_in) of the physics core (Fast, eq. 19) for ``distance`` scene units along the unit ``direction``
     from the camera, with the scene's Atmos settings and sun: what the composite of a surface should be."""
     from atmos_addon.blender import scene_reading, settings_io
-    from atmos_addon.physics import sun_irradiance_ground
     from atmos_addon.physics.aerial_perspective import extinction, inscattering
 
     atmosphere = settings_io.atmosphere_from_settings(scene.atmos)
     sun_dir, _ = scene_reading.sun_direction(scene)
-    e_sun = sun_irradiance_ground(math.asin(sun_dir[2]), atmosphere)
+    _, e_sun, _ = ground_sun(scene, atmosphere)
     metres = distance * scene_reading.metres_per_unit(scene)
     mu = float(np.dot(np.asarray(direction), sun_dir))
     return extinction(metres, atmosphere), inscattering(metres, mu, atmosphere, e_sun)

@@ -17,13 +17,11 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-import atmos_addon
 from atmos_addon import plan
 from atmos_addon.blender.apply import compositor, materials
 from atmos_addon.blender import orchestrator, scene_reading, settings_io
-from atmos_addon.physics import sun_irradiance_ground
-from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, set_use_nodes, \
-    user_compositor, view_direction
+from render_utils import emission_material, fast_segment, ground_sun, parity_world_camera_sun, render_exr, \
+    set_use_nodes, user_compositor, view_direction
 
 IS_5 = bpy.app.version >= (5, 0, 0)
 EEVEE = "BLENDER_EEVEE" if IS_5 else "BLENDER_EEVEE_NEXT"
@@ -31,12 +29,7 @@ WORLD_COLOUR = (0.05, 0.1, 0.2)
 WIDTH, HEIGHT, FOV = 32, 16, math.radians(20.0)
 
 
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    atmos_addon.register()
-    yield
-    atmos_addon.unregister()
+pytestmark = pytest.mark.usefixtures("addon")
 
 
 def _quiet(function, *args):
@@ -151,9 +144,9 @@ def test_enable_disable_enable_is_idempotent() -> None:
     mesh_object("A", material)
     scene = bpy.context.scene
     orchestrator.enable_effect(scene)
-    first = snapshot(material.node_tree), snapshot(compositor._current_tree(scene))
+    first = snapshot(material.node_tree), snapshot(compositor.current_tree(scene))
     orchestrator.enable_effect(scene)
-    assert (snapshot(material.node_tree), snapshot(compositor._current_tree(scene))) == first
+    assert (snapshot(material.node_tree), snapshot(compositor.current_tree(scene))) == first
     orchestrator.disable_effect(scene)
     orchestrator.enable_effect(scene)
     assert snapshot(material.node_tree)[1] == first[0][1]
@@ -193,7 +186,7 @@ _user_compositor = user_compositor
 
 def _compositor_state(scene) -> tuple:
     if IS_5:
-        tree = compositor._current_tree(scene)
+        tree = compositor.current_tree(scene)
         effects = [(e.name, e.node_group) for e in scene.compositor_effects] if compositor.EFFECT_STACK else None
         return (tree.name if tree else None, snapshot(tree) if tree else None, scene.render.use_compositing, effects)
     return (_quiet(getattr, scene, "use_nodes"), snapshot(scene.node_tree) if scene.node_tree else None,
@@ -224,7 +217,7 @@ def test_missing_compositor_is_created_and_removed() -> None:
     mesh_object("A", user_material())
     before = _compositor_state(scene)
     orchestrator.enable_effect(scene)
-    tree = compositor._current_tree(scene)
+    tree = compositor.current_tree(scene)
     assert tree is not None and compositor.COMPOSITE_NODE in tree.nodes
     orchestrator.disable_effect(scene)
     after = _compositor_state(scene)
@@ -290,7 +283,7 @@ def _expected(scene, radiance, distance: float, column: int, row: int) -> np.nda
 
 def _show_pass(scene, socket_name: str | None) -> None:
     """Route a Render Layers output (or, for None, our composite) to the final output."""
-    tree = compositor._current_tree(scene)
+    tree = compositor.current_tree(scene)
     combine = tree.nodes[compositor.COMPOSITE_NODE]
     output = next(n for n in tree.nodes if n.bl_idname in ("NodeGroupOutput", "CompositorNodeComposite"))
     target = output.inputs[0]
@@ -424,11 +417,11 @@ def test_per_pixel_mode_composites_the_physics(engine: str, tolerance: float, tm
 
 
 def test_per_pixel_names_agree_between_the_materials_and_the_compositor_group() -> None:
-    from atmos_addon.nodes import parameters, per_pixel
+    from atmos_addon.nodes import parameters, per_pixel, surface
 
-    assert (materials.AOV_DISTANCE, materials.AOV_VIEW) == (per_pixel.AOV_DISTANCE, per_pixel.AOV_VIEW)
-    assert materials.DISTANCE_AOV_UNIT_M == per_pixel.DISTANCE_AOV_UNIT_M
-    assert materials.METRES_PER_UNIT == parameters.METRES_PER_UNIT
+    assert (surface.AOV_DISTANCE, surface.AOV_VIEW) == (per_pixel.AOV_DISTANCE, per_pixel.AOV_VIEW)
+    assert surface.DISTANCE_AOV_UNIT_M == per_pixel.DISTANCE_AOV_UNIT_M
+    assert surface.METRES_PER_UNIT == parameters.METRES_PER_UNIT
     assert sorted(aov for _, aov, _ in per_pixel.IMAGE_INPUTS[1:]) == sorted(name for name, _ in
                                                                            plan.AOVS["PER_PIXEL"])
 
@@ -452,7 +445,7 @@ def test_per_pixel_declares_a_colour_aov_first_and_reorders_a_file_that_did_not(
     assert compositor.value_aov_leads(scene, scene[compositor.STATE_KEY].to_dict())
     orchestrator.refresh_effect(scene)
     assert layer.aovs[0].name == "atmos_view" and len(layer.aovs) == 3
-    tree = compositor._current_tree(scene)
+    tree = compositor.current_tree(scene)
     node = tree.nodes[compositor.COMPOSITE_NODE]
     linked = {link.to_socket.name: link.from_socket.name for link in tree.links if link.to_node == node}
     assert linked == {"Image": "Image", "Coverage": "atmos_coverage", "Distance": "atmos_distance",
@@ -471,7 +464,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     orchestrator.enable_effect(scene)
     material_nodes = snapshot(user.node_tree)
     scene.atmos.render_mode = "PER_PIXEL"   # the update callback re-enables
-    tree = compositor._current_tree(scene)
+    tree = compositor.current_tree(scene)
     node = tree.nodes[compositor.COMPOSITE_NODE]
     assert node.node_tree.name == "Atmos Aerial Composite (Per Pixel)"
     assert compositor.installed_evaluation(scene) == "PER_PIXEL"
@@ -497,17 +490,17 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     scene.frame_set(scene.frame_current)
     assert tuple(round(v, 6) for v in node.inputs["Sun Irradiance (W/m^2)"].default_value) == (1.0, 2.0, 3.0)
     scene.atmos.render_mode = "COMPOSITOR"
-    node = compositor._current_tree(scene).nodes[compositor.COMPOSITE_NODE]
+    node = compositor.current_tree(scene).nodes[compositor.COMPOSITE_NODE]
     assert node.node_tree.name == compositor.GROUP_NAME
     assert {aov.name for aov in scene.view_layers[0].aovs} == {"atmos_coverage", "atmos_transmittance",
                                                                  "atmos_inscattering"}
-    animation = compositor._current_tree(scene).animation_data
+    animation = compositor.current_tree(scene).animation_data
     assert animation is None or not animation.drivers
     scene.atmos.render_mode = "PER_PIXEL"
     orchestrator.disable_effect(scene)
     assert _compositor_state(scene) == before or not compositor.GROUP_API
     assert "Atmos Aerial Composite (Per Pixel)" not in bpy.data.node_groups
-    tree = compositor._current_tree(scene)
+    tree = compositor.current_tree(scene)
     assert tree is None or tree.animation_data is None or not tree.animation_data.drivers
     assert not list(scene.view_layers[0].aovs)
 
@@ -515,7 +508,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
 def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_again() -> None:
     """A file saved by the first Per Pixel version (stop 18: eight parameter inputs, Fast only): the next sync
     rebuilds the group in place with today's inputs, and the group node gets a valid driver on every one."""
-    from atmos_addon.nodes import per_pixel
+    from atmos_addon.nodes import per_pixel, stamps
 
     scene = bpy.context.scene
     mesh_object("Thing", user_material())
@@ -524,7 +517,7 @@ def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_ag
     scene.atmos.render_mode = "PER_PIXEL"
     scene.atmos.quality = "BALANCED"
     orchestrator.enable_effect(scene)
-    tree = compositor._current_tree(scene)
+    tree = compositor.current_tree(scene)
     group = bpy.data.node_groups[per_pixel.GROUP_NAME]
     old_inputs = 4 + 8   # Image, Coverage, Distance, View and the eight parameters of the first version
     for item in [i for i in group.interface.items_tree if i.item_type == "SOCKET" and i.in_out == "INPUT"][old_inputs:]:
@@ -532,9 +525,9 @@ def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_ag
     for curve in [c for c in tree.animation_data.drivers if int(c.data_path.split("inputs[")[1].split("]")[0])
                   >= old_inputs]:
         tree.animation_data.drivers.remove(curve)
-    group[per_pixel.VERSION_KEY] = 1
+    group[stamps.VERSION_KEY] = 1
     orchestrator.update(scene)
-    assert group[per_pixel.VERSION_KEY] == per_pixel.GROUP_VERSION and bpy.data.node_groups[per_pixel.GROUP_NAME] == group
+    assert group[stamps.VERSION_KEY] == stamps.PER_PIXEL.version and bpy.data.node_groups[per_pixel.GROUP_NAME] == group
     node = tree.nodes[compositor.COMPOSITE_NODE]
     drivers = [c for c in tree.animation_data.drivers if c.data_path.startswith(f'nodes["{node.name}"]')]
     assert len(drivers) == 3 * 9 + 3 + 1 and all(c.driver.is_valid for c in drivers)
@@ -555,7 +548,7 @@ def test_the_per_pixel_camera_driver_picks_up_a_camera_added_after_enabling() ->
     scene.atmos.quality = "BALANCED"
     orchestrator.enable_effect(scene)
     scene.frame_set(scene.frame_current)
-    node = compositor._current_tree(scene).nodes[compositor.COMPOSITE_NODE]
+    node = compositor.current_tree(scene).nodes[compositor.COMPOSITE_NODE]
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(camera)
     camera.location.z = 50.0
@@ -569,12 +562,11 @@ def _expected_balanced(scene, radiance, distance: float, column: int, row: int) 
     """L0 F_ex + L_in of ``physics.balanced`` for the scene's camera (origin altitude + its z), in the variant of
     the scene's mode (Per Pixel: 8 pieces, the sun at their middles)."""
     from atmos_addon.physics.balanced import (CURVATURE_PIECES, PER_PIXEL_PIECES, PER_PIXEL_SUN_AT,
-                                              extinction_balanced, inscattering_balanced, sun_optical_depths_ground)
+                                              extinction_balanced, inscattering_balanced)
 
     atmosphere = settings_io.atmosphere_from_settings(scene.atmos)
     sun_dir, _ = scene_reading.sun_direction(scene)
-    elevation = math.asin(sun_dir[2])
-    e_sun = sun_irradiance_ground(elevation, atmosphere)
+    _, e_sun, taus = ground_sun(scene, atmosphere)
     metres = distance * scene_reading.metres_per_unit(scene)
     view = np.array(_pixel_direction(column, row))
     h0 = scene.atmos.origin_altitude + scene.camera.location.z * scene_reading.metres_per_unit(scene)
@@ -582,7 +574,7 @@ def _expected_balanced(scene, radiance, distance: float, column: int, row: int) 
     pieces, sun_at = (PER_PIXEL_PIECES, PER_PIXEL_SUN_AT) if per_pixel else (CURVATURE_PIECES, "lower_end")
     return (np.asarray(radiance) * extinction_balanced(h0, view, metres, atmosphere, pieces=pieces)
             + inscattering_balanced(h0, view, metres, float(view @ sun_dir), atmosphere, e_sun,
-                                    sun_optical_depths=sun_optical_depths_ground(elevation, atmosphere),
+                                    sun_optical_depths=taus,
                                     pieces=pieces, sun_at=sun_at))
 
 

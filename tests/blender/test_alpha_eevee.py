@@ -22,7 +22,6 @@ import numpy as np
 import pytest
 from mathutils import Vector
 
-import atmos_addon
 from atmos_addon.blender import orchestrator
 from render_utils import fast_segment, render_exr
 
@@ -33,12 +32,7 @@ WALL_DISTANCE, WALL_RADIANCE = 3000.0, (0.8, 0.8, 0.8)
 TOLERANCE = 1e-2
 
 
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    atmos_addon.register()
-    yield
-    atmos_addon.unregister()
+pytestmark = pytest.mark.usefixtures("addon")
 
 
 def _use_nodes(idblock) -> None:

@@ -206,6 +206,19 @@ def test_error_paths_exit_2_with_one_line(workdir: Path, args: tuple[str, ...], 
     assert not (workdir / "x.png").exists() and not (workdir / "x.jpg").exists()
 
 
+def test_a_python_script_using_the_api_exits_cleanly(workdir: Path) -> None:
+    """A pipeline script with the pip bpy module: the add-on stays registered until the process ends (4.5's bpy
+    crashed at exit, code -11, after a successful run)."""
+    script = ("import sys, bpy\nfrom atmos_addon import api\n"
+              "bpy.ops.wm.open_mainfile(filepath=sys.argv[1])\n"
+              "api.enable(bpy.context.scene, preset='clear')\nprint('enabled', api.is_enabled(bpy.context.scene))\n")
+    proc = subprocess.run([sys.executable, "-c", script, str(workdir / "camera.blend")], cwd=workdir,
+                          env=dict(os.environ, HOME=str(workdir), PYTHONPATH=str(REPO_ROOT)), capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "enabled True" in proc.stdout
+
+
 def test_presets_list_show_validate(workdir: Path) -> None:
     listed = run_cli("presets", "list", cwd=workdir)
     assert listed.returncode == 0

@@ -35,12 +35,7 @@ WIDTH, HEIGHT, FOV = 32, 16, math.radians(20.0)
 TOLERANCE = 2e-3
 
 
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    atmos_addon.register()
-    yield
-    atmos_addon.unregister()
+pytestmark = pytest.mark.usefixtures("addon")
 
 
 def _pixel_direction(column: float, row: float) -> Vector:

@@ -5,8 +5,9 @@ its node-group migrations).
 ``data/atmos_addba16.blend`` was written by main at addba16 (the release before the Blender-layer redesign) with
 ``tools/make_release_blend.py``, saved by Blender 4.5.15, with the pixels that release rendered beside it: two
 scenes, Compositor mode at the Fast level and Per Pixel mode at the Balanced level, emissive planes against the
-Atmos sky. Opened with today's add-on, no Atmos node group may read as edited and every scene must render as it did
-(Cycles, pixel centres: emission and sky only, no sampling noise).
+Atmos sky. Opened with today's add-on, every Atmos node group must carry today's stamp (:mod:`atmos_addon.nodes.stamps`),
+rebuilt in place (no second copy, the compositor's and materials' links kept), none may read as edited, and every
+scene must render as it did (Cycles, pixel centres: emission and sky only, no sampling noise).
 """
 
 from __future__ import annotations
@@ -18,20 +19,15 @@ import bpy
 import numpy as np
 import pytest
 
-import atmos_addon
 from atmos_addon.blender import group_integrity
+from atmos_addon.nodes import registry, stamps
 import render_utils as ru
 
 DATA = Path(__file__).resolve().parent / "data"
 RELEASES = ("addba16",)
 
 
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    atmos_addon.register()
-    yield
-    atmos_addon.unregister()
+pytestmark = pytest.mark.usefixtures("addon")
 
 
 @pytest.mark.parametrize("release", RELEASES)
@@ -40,6 +36,12 @@ def test_a_file_of_an_earlier_release_upgrades_in_place_and_renders_the_same(rel
     shutil.copy(DATA / source.name, source)   # opened from a copy: the test never rewrites the stored file
     bpy.ops.wm.open_mainfile(filepath=str(source))
     assert group_integrity.edited_groups(force=True) == []   # rebuilt or kept as built, none reads as hand-edited
+    managed = registry.managed_trees()
+    assert {kind for kind, _ in managed} >= {stamps.AERIAL, stamps.SKY, stamps.SURFACE, stamps.COMPOSITE,
+                                             stamps.PER_PIXEL, stamps.SKY_LIGHTING}
+    for kind, tree in managed:   # every group upgraded to today's stamp, in place: no second copy of a group
+        assert tree[stamps.KIND_KEY] == kind.name and tree[stamps.VERSION_KEY] == kind.version, tree.name
+        assert kind.per_world or sum(k == kind for k, _ in managed) == 1, tree.name
     for scene_name in ("Compositor", "Per Pixel"):
         scene = bpy.data.scenes[scene_name]
         assert scene.atmos.enabled

@@ -37,12 +37,7 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 FOV = math.radians(60.0)
 
 
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    atmos_addon.register()
-    yield
-    atmos_addon.unregister()
+pytestmark = pytest.mark.usefixtures("addon")
 
 
 def new_user_scene(width: int, height: int) -> bpy.types.Scene:
@@ -512,3 +507,52 @@ def test_render_without_a_preset_uses_the_files_own_settings(tmp_path):
     assert proc.returncode == 2
     errors = [line for line in proc.stderr.splitlines() if line.startswith("atmos: error: ")]
     assert len(errors) == 1 and "--preset" in errors[0] and "Traceback" not in proc.stderr, proc.stderr[-2000:]
+
+
+def test_the_api_points_the_sun_and_applies_presets_and_refuses_bad_input_unchanged(tmp_path):
+    """The README's API lines on a scene from scratch: ``set_sun`` turns the lamp, which the nodes' sun and the
+    lamp's colour follow; ``set_preset`` sets the atmosphere (and the sun where the preset has one); a refused
+    call raises :class:`AtmosError` and changes nothing."""
+    from atmos_addon import api
+    from atmos_addon.blender import scene_reading, settings_io
+    from atmos_addon.blender.apply import sun_lamp
+    from atmos_addon.nodes import parameters
+
+    scene = new_user_scene(32, 16)
+    api.enable(scene, preset="clear", sun_elevation_deg=30.0, sun_azimuth_deg=0.0)
+    lamp = scene_reading.sun_object(scene)
+    high_strength, high_colour = lamp.data.energy, np.array(lamp.data.color)
+
+    api.set_sun(scene, elevation_deg=5.0, azimuth_deg=120.0)
+    assert np.allclose(sun_lamp.sun_angles(scene), (math.radians(5.0), math.radians(120.0)), atol=1e-6)
+    direction, _ = scene_reading.sun_direction(scene)
+    assert np.allclose(scene[parameters.SUN_DIRECTION], direction, atol=1e-6)   # what the nodes read
+    assert lamp.data.energy < high_strength
+    colour = np.array(lamp.data.color)
+    assert colour[0] / colour[2] > high_colour[0] / high_colour[2]   # a low sun is dimmer and redder
+
+    def state():
+        settings = scene.atmos
+        values = {p.identifier: getattr(settings, p.identifier) for p in settings.bl_rna.properties
+                  if p.type in {"FLOAT", "INT", "BOOLEAN", "ENUM", "STRING"}}
+        return (tuple(sun_lamp.sun_angles(scene)),
+                {k: tuple(v) if hasattr(v, "__len__") and not isinstance(v, str) else v for k, v in values.items()})
+
+    before = state()
+    for call in (lambda: api.set_sun(scene, elevation_deg=95.0, azimuth_deg=0.0),
+                 lambda: api.set_sun(scene, elevation_deg=float("nan"), azimuth_deg=0.0),
+                 lambda: api.set_preset(scene, "no such preset"),
+                 lambda: api.set_preset(scene, tmp_path / "missing.toml")):
+        with pytest.raises(api.AtmosError):
+            call()
+        assert state() == before
+
+    preset = api.set_preset(scene, "overcast")   # no [sun] table: the sun stays where it was
+    assert scene.atmos.preset_name == "overcast"
+    assert np.allclose(sun_lamp.sun_angles(scene), (math.radians(5.0), math.radians(120.0)), atol=1e-6)
+    got = settings_io.atmosphere_from_settings(scene.atmos)
+    for name in ("rayleigh_scattering", "mie_scattering", "mie_absorption", "mie_g"):
+        assert np.allclose(getattr(got, name), getattr(preset.atmosphere, name), rtol=2e-6), name
+    api.set_preset(scene, "sunset")   # sets the sun's elevation, keeps its azimuth
+    assert np.allclose(sun_lamp.sun_angles(scene), (math.radians(2.0), math.radians(120.0)), atol=1e-6)
+    assert scene.atmos.enabled

@@ -21,9 +21,10 @@ import render_utils as ru
 from atmos_addon.physics import Atmosphere, inscattering
 from atmos_addon.physics.sky import (aerial_distance_clamped, dome_distance_approx, elevation_of,
                                      extinction_layered, inscattering_layered)
-from atmos_addon.nodes import (AERIAL_PARAMETER_NAMES, GROUP_NAME, NODE_GROUP_VERSION, OUTPUT_INSCATTERING,
+from atmos_addon.nodes import (AERIAL_PARAMETER_NAMES, GROUP_NAME, OUTPUT_INSCATTERING,
                          OUTPUT_TRANSMITTANCE, AerialFeatures, clear_shader_parameters, describe_features,
                          ensure_aerial_perspective_group, node_count, read_shader_parameters, write_shader_parameters)
+from atmos_addon.nodes import stamps
 from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
 from atmos_addon.nodes.parameters import BALANCED_PARAMETER_NAMES
 
@@ -135,6 +136,30 @@ def _expected(camera, metres_per_unit: float, sun_direction, atm: Atmosphere = A
     return np.where(top, transmittance, light * gain)
 
 
+def _builder_image(scene, camera, features: AerialFeatures, metres_per_unit: float) -> np.ndarray:
+    """What the group's own builder computes for the parity scene's pixel-centre rays, on the graph builder's
+    numpy backend (:func:`atmos_addon.nodes.aerial_perspective.evaluate`) with the parameters the scene holds
+    and the Precise table's pixels as Blender stores them: the render must equal it (one source per equation)."""
+    from atmos_addon.nodes import aerial_perspective
+    from atmos_addon.nodes.precise import IMAGE_NAME
+
+    directions, distance_m, depth = _parity_rays(camera, metres_per_unit)
+    distance_units = distance_m / metres_per_unit
+    origin = np.array(camera.matrix_world.translation, dtype=np.float64)
+    values = {name: value for name, value in read_shader_parameters(scene).items() if value is not None}
+    images = {}
+    if IMAGE_NAME in bpy.data.images:
+        table = bpy.data.images[IMAGE_NAME]
+        pixels = np.empty(table.size[0] * table.size[1] * 4, dtype=np.float32)
+        table.pixels.foreach_get(pixels)
+        images[IMAGE_NAME] = pixels.reshape(table.size[1], table.size[0], 4)
+    transmittance, light = aerial_perspective.evaluate(
+        features, values, distance_units=distance_units.reshape(-1), view_direction=directions.reshape(-1, 3),
+        position=(origin + directions * distance_units[..., np.newaxis]).reshape(-1, 3), images=images)
+    shape = directions.shape
+    return _parity_image(transmittance.reshape(shape), light.reshape(shape), depth)
+
+
 def _relative_error(image: np.ndarray, expected: np.ndarray, engine: str, case: str) -> float:
     """The worst relative error of a render against the core (floored at RELATIVE_FLOOR), asserted finite and
     under the engine's tolerance; ``case`` names the render in the failure message."""
@@ -159,8 +184,10 @@ def test_parity_with_physics_core(engine):
         _write(scene, ATMOSPHERE, sun, metres_per_unit)
         image = ru.render_to_array(scene)[..., :3]
         expected = _expected(camera, metres_per_unit, sun)
-        worst = max(worst, _relative_error(image, expected, engine,
-                                           f"m/unit {metres_per_unit} sun {sun.round(3).tolist()}"))
+        case = f"m/unit {metres_per_unit} sun {sun.round(3).tolist()}"
+        worst = max(worst, _relative_error(image, expected, engine, case))
+        _relative_error(image, _builder_image(scene, camera, AerialFeatures(), metres_per_unit), engine,
+                        f"{case}, against its builder")
     PARITY_ERRORS[engine] = worst
     print(f"\n{engine} (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
 
@@ -218,7 +245,7 @@ def test_ensure_group_rebuilds_only_when_stale():
     features = AerialFeatures(mie=True, absorption=True)
     tree = ensure_aerial_perspective_group(features)
     assert tree.name == GROUP_NAME
-    assert tree["atmos_version"] == NODE_GROUP_VERSION and tree["atmos_features"] == "rayleigh+mie+abs"
+    assert tree["atmos_version"] == stamps.AERIAL.version and tree["atmos_features"] == "rayleigh+mie+abs"
     before = [(node.name, node.as_pointer()) for node in tree.nodes]
     again = ensure_aerial_perspective_group(features)
     assert again.as_pointer() == tree.as_pointer()
@@ -232,9 +259,9 @@ def test_ensure_group_rebuilds_only_when_stale():
     material.node_tree.links.new(group_node.outputs[OUTPUT_INSCATTERING], emission.inputs["Color"])
     rebuilt = ensure_aerial_perspective_group(AerialFeatures(mie=False, absorption=True))
     assert rebuilt.as_pointer() == tree.as_pointer() and rebuilt["atmos_features"] == "rayleigh+abs"
-    tree["atmos_version"] = NODE_GROUP_VERSION - 1
+    tree["atmos_version"] = stamps.AERIAL.version - 1
     rebuilt = ensure_aerial_perspective_group(AerialFeatures(mie=False, absorption=True))
-    assert rebuilt["atmos_version"] == NODE_GROUP_VERSION
+    assert rebuilt["atmos_version"] == stamps.AERIAL.version
     assert len(bpy.data.node_groups) == 1
     assert emission.inputs["Color"].is_linked
     assert emission.inputs["Color"].links[0].from_socket.name == OUTPUT_INSCATTERING
@@ -366,8 +393,8 @@ def _write_balanced(scene, atm: Atmosphere, sun_direction, metres_per_unit: floa
     from atmos_addon.physics.balanced import sun_optical_depths_ground
 
     sun = _unit(sun_direction)
-    tau_r, tau_m = sun_optical_depths_ground(math.asin(sun[2]), atm)
     e_sun = sun_irradiance_ground(math.asin(sun[2]), atm)
+    tau_r, tau_m = sun_optical_depths_ground(math.asin(sun[2]), atm, e_sun)
     write_shader_parameters(scene, beta_rayleigh=atm.rayleigh_scattering, beta_mie=atm.mie_scattering,
                             beta_mie_absorption=atm.mie_absorption, mie_g=atm.mie_g, sun_direction=sun,
                             sun_irradiance=e_sun, metres_per_unit=metres_per_unit,
@@ -418,6 +445,8 @@ def test_balanced_group_matches_physics_core(engine):
         fast = _expected(camera, metres_per_unit, sun) * np.where(  # Fast with the same E_sun
             np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2, 1.0, e_sun / np.array(SUN_IRRADIANCE))
         worst = max(worst, _relative_error(image, expected, engine, f"camera {location}"))
+        _relative_error(image, _builder_image(scene, camera, AerialFeatures(level="balanced"), metres_per_unit),
+                        engine, f"camera {location}, against its builder")
         # The case is one where the levels differ: the test would fail on the Fast graph.
         assert (np.abs(fast - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)).max() > 0.1
     print(f"\n{engine} Balanced (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
@@ -492,6 +521,8 @@ def test_precise_group_matches_physics_core(engine):
         image = ru.render_to_array(scene)[..., :3]
         expected = _expected_precise(camera, metres_per_unit, sun, tile)
         worst = max(worst, _relative_error(image, expected, engine, f"camera {location}"))
+        _relative_error(image, _builder_image(scene, camera, AerialFeatures(level="precise"), metres_per_unit),
+                        engine, f"camera {location}, against its builder")
     print(f"\n{engine} Precise (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
 
 

@@ -14,17 +14,11 @@ from pathlib import Path
 import bpy
 import pytest
 
-import atmos_addon
 from atmos_addon.blender import group_integrity, orchestrator, sync
 from atmos_addon.blender.apply import materials
 
 
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    atmos_addon.register()
-    yield
-    atmos_addon.unregister()
+pytestmark = pytest.mark.usefixtures("addon")
 
 
 def _material(name: str):
@@ -117,10 +111,10 @@ def test_edits_to_links_and_settings_in_sky_and_surface_groups_are_noticed() -> 
     bpy.context.view_layer.update()
     assert group_integrity.edited_groups(force=True) == [group_integrity.SKY, group_integrity.SURFACE]
     n_links = len(sky.links)
-    group_integrity.reset_groups(bpy.context.scene, names=[group_integrity.SKY])
+    group_integrity.reset_groups(names=[group_integrity.SKY])
     assert len(sky.links) == n_links + 1
     assert group_integrity.edited_groups() == [group_integrity.SURFACE]
-    group_integrity.reset_groups(bpy.context.scene)
+    group_integrity.reset_groups()
     assert group_integrity.edited_groups() == []
     assert next(n for n in surface.nodes if n.bl_idname == "ShaderNodeMath").operation == "SUBTRACT"
 
@@ -172,7 +166,7 @@ def test_a_second_scene_in_another_mode_is_not_an_edit() -> None:
     second.atmos.render_mode = "PER_PIXEL"
     orchestrator.enable_effect(second)
     bpy.context.view_layer.update()
-    assert bpy.data.node_groups[group_integrity.SURFACE]["atmos_evaluations"] == "COMPOSITOR,PER_PIXEL"
+    assert bpy.data.node_groups[group_integrity.SURFACE]["atmos_features"] == "COMPOSITOR,PER_PIXEL"
     assert group_integrity.edited_groups(force=True) == []
 
 

@@ -13,17 +13,13 @@ import math
 import numpy as np
 import pytest
 
-import atmos_addon
 import render_utils as ru
 from atmos_addon import api
 
 
 @pytest.fixture()
-def scene():
-    scene = ru.reset_scene()
-    atmos_addon.register()
-    yield scene
-    atmos_addon.unregister()
+def scene(addon):
+    return addon
 
 
 def _look(scene, elevation_deg: float, azimuth_deg: float) -> np.ndarray:

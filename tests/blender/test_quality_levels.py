@@ -16,21 +16,15 @@ import pytest
 import atmos_addon
 from atmos_addon.blender.apply import in_render
 from atmos_addon.blender import orchestrator, quality_choice
-from atmos_addon.physics.balanced import (CURVATURE_PIECES, PER_PIXEL_PIECES, PER_PIXEL_SUN_AT,
-                                          sun_optical_depths_ground)
+from atmos_addon.physics import sun_irradiance_ground
+from atmos_addon.physics.balanced import sun_optical_depths_ground
 from atmos_addon.physics.quality import SceneSummary
-from atmos_addon.nodes import balanced as balanced_nodes
 from render_utils import emission_material
 
 GROUP = "Atmos Aerial Perspective"
 
 
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    atmos_addon.register()
-    yield
-    atmos_addon.unregister()
+pytestmark = pytest.mark.usefixtures("addon")
 
 
 def _scene(camera_z: float = 2.0, far: float = 3000.0):
@@ -50,11 +44,6 @@ def _scene(camera_z: float = 2.0, far: float = 3000.0):
     mesh.materials.append(emission_material("Ground", (0.1, 0.1, 0.1)))
     scene.collection.objects.link(bpy.data.objects.new("Ground", mesh))
     return scene
-
-
-def test_node_and_physics_piece_counts_agree():
-    assert balanced_nodes.PIECES == CURVATURE_PIECES
-    assert (balanced_nodes.PER_PIXEL_PIECES, balanced_nodes.PER_PIXEL_SUN_AT) == (PER_PIXEL_PIECES, PER_PIXEL_SUN_AT)
 
 
 def test_quality_switch_edits_the_same_group_and_materials_keep_it():
@@ -105,7 +94,10 @@ def test_balanced_parameters_follow_the_sun_and_the_origin_altitude():
         sun.rotation_euler = (math.radians(tilt), 0.0, 0.0)
         bpy.context.view_layer.update()
         elevation = math.radians(90.0 - tilt)
-        tau_r, tau_m = sun_optical_depths_ground(elevation, atmos_addon.blender.scene_reading.atmosphere_of(scene))
+        e_ground = sun_irradiance_ground(elevation, atmos_addon.blender.scene_reading.atmosphere_of(scene), 0.0,
+                                         0.5 * scene.atmos.sun_angular_diameter, scene.atmos.sun_limb_darkening)
+        tau_r, tau_m = sun_optical_depths_ground(elevation, atmos_addon.blender.scene_reading.atmosphere_of(scene),
+                                                 e_ground)
         np.testing.assert_allclose(scene["atmos_sun_optical_depth_rayleigh"], np.minimum(tau_r, 50.0), rtol=1e-6)
         np.testing.assert_allclose(scene["atmos_sun_optical_depth_mie"], np.minimum(tau_m, 50.0), rtol=1e-6)
         assert np.all(np.isfinite(scene["atmos_sun_optical_depth_mie"]))
@@ -167,8 +159,6 @@ def test_precise_bakes_follows_the_sun_and_camera_and_cleans_up():
     from atmos_addon.nodes import precise as precise_nodes
     from atmos_addon.nodes.parameters import PRECISE_PARAMETER_NAMES, PRECISE_TILE
 
-    assert (precise_nodes.ALTITUDES, precise_nodes.AZIMUTHS, precise_nodes.DISTANCES) == (
-        DEFAULT_SHAPE.altitudes, DEFAULT_SHAPE.azimuths, DEFAULT_SHAPE.distances)
     scene = _scene(camera_z=300.0)
     scene.atmos.quality = "PRECISE"
     report = orchestrator.enable_effect(scene)

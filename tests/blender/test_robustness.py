@@ -22,8 +22,8 @@ import bpy
 import numpy as np
 import pytest
 
-import atmos_addon
 from atmos_addon import plan
+from atmos_addon.nodes import stamps
 from atmos_addon.blender.apply import compositor, materials
 from atmos_addon.blender import orchestrator, scene_reading, sun_bake
 
@@ -35,12 +35,7 @@ PARAMETERS = ("atmos_beta_rayleigh", "atmos_beta_mie", "atmos_beta_mie_absorptio
               "atmos_sun_direction", "atmos_sun_irradiance", "atmos_metres_per_unit")
 
 
-@pytest.fixture(autouse=True)
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    atmos_addon.register()
-    yield
-    atmos_addon.unregister()
+pytestmark = pytest.mark.usefixtures("addon")
 
 
 # -- helpers -------------------------------------------------------------------------------------
@@ -153,7 +148,8 @@ def parameters(scene) -> dict:
 
 def orphan_groups() -> list[str]:
     """Atmos node groups nothing uses (no users, no fake user): left behind, they would be saved with the file."""
-    return sorted(g.name for g in bpy.data.node_groups if g.name.startswith(materials.PREFIX) and g.users == 0)
+    return sorted(g.name for g in bpy.data.node_groups
+                  if (g.name.startswith("Atmos ") or stamps.kind_of(g) is not None) and g.users == 0)
 
 
 def lamp_direction(lamp) -> np.ndarray:
@@ -212,7 +208,7 @@ def test_save_and_reopen_keeps_the_effect_and_load_post_resyncs(tmp_path: Path) 
         (node,) = materials.atmos_nodes(material)
         assert node.node_tree.name == materials.SURFACE_GROUP
         aovs = {n.aov_name for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"}
-        assert aovs == {materials.AOV_TRANSMITTANCE, materials.AOV_INSCATTERING, materials.AOV_COVERAGE}
+        assert aovs == {plan.AOV_TRANSMITTANCE, plan.AOV_INSCATTERING, plan.AOV_COVERAGE}
     assert [a.name for a in scene.view_layers[0].aovs] == [n for n, _ in plan.AOVS["COMPOSITOR"]]
     assert compositor_state(scene) == composited
     assert compositor.STATE_KEY in scene
@@ -388,7 +384,7 @@ def test_farm_renders_the_per_pixel_mode_of_a_setting_sun(quality: str, tmp_path
     scene.atmos.quality = quality
     _three_frames_of_a_setting_sun(scene, climbing_camera=quality != "FAST")
     orchestrator.enable_effect(scene)
-    node = compositor._current_tree(scene).nodes[compositor.COMPOSITE_NODE]
+    node = compositor.current_tree(scene).nodes[compositor.COMPOSITE_NODE]
     session = {}
     for frame in (1, 3):
         scene.frame_set(frame)

@@ -19,18 +19,15 @@ import bpy
 import numpy as np
 import pytest
 
-import atmos_addon
 import render_utils as ru
 from atmos_addon.blender import orchestrator, scene_reading, sun_bake
 from atmos_addon.blender.apply import sun_lamp, world
 from atmos_addon.physics import Atmosphere, sun_color_and_strength, sun_irradiance_ground
-from atmos_addon.physics.sky import (CHAPMAN_APPROX_P, SUN_LIMB_DARKENING, aerial_distance_clamped,
+from atmos_addon.physics.sky import (aerial_distance_clamped,
                                      dome_distance_approx, elevation_of, inscattering_layered, sky_radiance)
-from atmos_addon.physics.sun import SUN_ANGULAR_RADIUS_RAD
 from atmos_addon.nodes import (OUTPUT_INSCATTERING, OUTPUT_RADIANCE, SKY_NODE_COUNTS, AerialFeatures, SkyFeatures,
-                         ensure_aerial_perspective_group, ensure_sky_group, parameters, write_shader_parameters)
+                         ensure_aerial_perspective_group, ensure_sky_group, write_shader_parameters)
 from atmos_addon.nodes import sky_lighting
-from atmos_addon.nodes.dome import CHAPMAN_APPROX_P as NODE_CHAPMAN_P
 from atmos_addon.physics.sky_table import sky_lighting_table
 
 ATMOSPHERE = Atmosphere()
@@ -91,12 +88,6 @@ def test_sky_group_counts_constants_and_defaults():
                 features = SkyFeatures(mie, absorption, ground)
                 assert len(ensure_sky_group(features).nodes) == SKY_NODE_COUNTS[features.key]
     assert len(bpy.data.node_groups) == 1
-    assert NODE_CHAPMAN_P == CHAPMAN_APPROX_P
-    assert parameters.DEFAULT_PLANET_RADIUS_M == ATMOSPHERE.planet_radius
-    assert parameters.DEFAULT_RAYLEIGH_SCALE_HEIGHT_M == pytest.approx(ATMOSPHERE.rayleigh_scale_height, rel=1e-12)
-    assert parameters.DEFAULT_MIE_SCALE_HEIGHT_M == ATMOSPHERE.mie_scale_height
-    assert parameters.DEFAULT_SUN_ANGULAR_RADIUS_RAD == pytest.approx(SUN_ANGULAR_RADIUS_RAD)
-    assert parameters.DEFAULT_SUN_LIMB_DARKENING == SUN_LIMB_DARKENING
     # The aerial group reads the same dome: the same labelled nodes in both trees.
     aerial = ensure_aerial_perspective_group(AerialFeatures())
     sky = ensure_sky_group(SkyFeatures())
@@ -428,14 +419,6 @@ def test_precise_level_shows_and_lights_with_the_precise_sky(addon):
     assert "Atmos Precise Table" not in bpy.data.images
     orchestrator.disable_effect(scene)
     assert not any(g.name.startswith("Atmos Sky") for g in bpy.data.node_groups)
-
-
-@pytest.fixture
-def addon():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    atmos_addon.register()
-    yield bpy.context.scene
-    atmos_addon.unregister()
 
 
 def test_sun_angles_round_trip(addon):

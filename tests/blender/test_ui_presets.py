@@ -37,15 +37,7 @@ OUR_MODULES = ("atmos_addon",)
 # Fixtures and helpers
 
 
-@pytest.fixture(autouse=True)
-def addon(tmp_path):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    user = tmp_path / "user_presets"
-    presets.set_user_directory(user)
-    atmos_addon.register()
-    yield user
-    atmos_addon.unregister()
-    presets.set_user_directory(None)
+pytestmark = pytest.mark.usefixtures("addon")
 
 
 def add_sun(scene, elevation_deg: float = 40.0):
@@ -154,13 +146,13 @@ def test_register_unregister_twice_leaves_nothing_behind():
                 assert {"REGISTER", "UNDO"} <= set(cls.bl_options), cls.bl_idname
 
 
-def test_extension_package_and_user_directory(addon):
+def test_extension_package_and_user_directory(user_presets):
     assert preset_ops.extension_package("bl_ext.user_default.atmos.atmos_addon.blender") == "bl_ext.user_default.atmos"
     assert preset_ops.extension_package("atmos_addon.blender") == ""
     with pytest.raises(ValueError):
         preset_ops.extension_package("somewhere.else")
     # from a source checkout: the folder given to presets.set_user_directory
-    assert preset_ops.user_directory() == addon
+    assert preset_ops.user_directory() == user_presets
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -237,7 +229,7 @@ def draw_everything(scene) -> list:
     return calls
 
 
-def test_every_panel_draws_for_every_builtin_preset(addon):
+def test_every_panel_draws_for_every_builtin_preset(user_presets):
     scene = bpy.context.scene
     add_sun(scene)
     for name in BUILTINS:
@@ -263,7 +255,7 @@ def test_every_panel_draws_for_every_builtin_preset(addon):
 # The library operators
 
 
-def test_the_panel_says_what_the_viewport_shows(addon):
+def test_the_panel_says_what_the_viewport_shows(user_presets):
     """One line under the mode row, from what GUI Blender 4.3.2 and 5.2.2 showed (docs/viewport.md): Eevee's
     viewport compositor gets the AOVs, Cycles' gets no passes, In-Render is shading (Cycles)."""
     scene = bpy.context.scene
@@ -285,7 +277,7 @@ def test_the_panel_says_what_the_viewport_shows(addon):
     assert ("label", ui_panel.viewport_note(scene)) in draw_everything(scene)
 
 
-def test_the_panel_says_why_the_mode_differs_and_when_eevee_shows_a_flat_sky(addon):
+def test_the_panel_says_why_the_mode_differs_and_when_eevee_shows_a_flat_sky(user_presets):
     """With OSL on in Cycles the panel says the haze is applied In-Render and why; with a camera clip range over
     Eevee's limit it says to raise Clip Start (and by how much); otherwise neither line is drawn."""
     scene = bpy.context.scene
@@ -305,7 +297,7 @@ def test_the_panel_says_why_the_mode_differs_and_when_eevee_shows_a_flat_sky(add
     assert not any(text and "Clip Start" in text for text in labels())
 
 
-def test_apply_preset_sets_settings_within_float32_and_the_sun(addon):
+def test_apply_preset_sets_settings_within_float32_and_the_sun(user_presets):
     scene = bpy.context.scene
     add_sun(scene, 40.0)
     for name in BUILTINS:
@@ -319,7 +311,7 @@ def test_apply_preset_sets_settings_within_float32_and_the_sun(addon):
         assert not preset_ops.is_modified(scene)
 
 
-def test_haze_and_air_density_read_and_write_the_coefficients(addon):
+def test_haze_and_air_density_read_and_write_the_coefficients(user_presets):
     settings = bpy.context.scene.atmos
     bpy.ops.atmos.preset_apply(name="clear")
     assert settings.air_density == pytest.approx(1.0, rel=1e-5)
@@ -338,7 +330,7 @@ def test_haze_and_air_density_read_and_write_the_coefficients(addon):
     assert preset_ops.is_modified(bpy.context.scene)
 
 
-def test_save_round_trips_rename_and_delete(addon):
+def test_save_round_trips_rename_and_delete(user_presets):
     scene = bpy.context.scene
     add_sun(scene, 25.0)
     bpy.ops.atmos.preset_apply(name="overcast")
@@ -346,9 +338,9 @@ def test_save_round_trips_rename_and_delete(addon):
     scene.atmos.mie_g = (0.5, 0.6, 0.7)
     assert bpy.ops.atmos.preset_add(name="Look A", include_sun=True) == {"FINISHED"}
     saved = snapshot(scene)
-    assert (addon / "Look A.toml").is_file() and "Look A" in presets.names(addon)
+    assert (user_presets / "Look A.toml").is_file() and "Look A" in presets.names(user_presets)
     assert scene.atmos.preset_name == "Look A"
-    preset = presets.load("Look A", addon)
+    preset = presets.load("Look A", user_presets)
     assert preset.sun_elevation_deg == pytest.approx(25.0, abs=1e-3)
     with pytest.raises(RuntimeError, match="exists"):
         bpy.ops.atmos.preset_add(name="Look A")
@@ -365,18 +357,18 @@ def test_save_round_trips_rename_and_delete(addon):
     assert sun_elevation_deg(scene) == pytest.approx(25.0, abs=1e-3)
 
     assert bpy.ops.atmos.preset_rename(name="Look A", new_name="Look B") == {"FINISHED"}
-    assert presets.names(addon)[-1] == "Look B" and scene.atmos.preset_name == "Look B"
-    assert not (addon / "Look A.toml").exists()
+    assert presets.names(user_presets)[-1] == "Look B" and scene.atmos.preset_name == "Look B"
+    assert not (user_presets / "Look A.toml").exists()
     with pytest.raises(RuntimeError, match="built-in"):
         bpy.ops.atmos.preset_rename(name="sunset", new_name="dusk")
     with pytest.raises(RuntimeError, match="built-in"):
         bpy.ops.atmos.preset_remove(name="clear")
     assert (presets.BUILTIN_DIRECTORY / "clear.toml").is_file()
     assert bpy.ops.atmos.preset_remove(name="Look B") == {"FINISHED"}
-    assert presets.names(addon) == list(BUILTINS) and scene.atmos.preset_name == ""
+    assert presets.names(user_presets) == list(BUILTINS) and scene.atmos.preset_name == ""
 
 
-def test_import_and_export(addon, tmp_path):
+def test_import_and_export(user_presets, tmp_path):
     scene = bpy.context.scene
     bpy.ops.atmos.preset_apply(name="sunset")
     scene.atmos.air_density = 1.3
@@ -390,7 +382,7 @@ def test_import_and_export(addon, tmp_path):
 
     bpy.ops.atmos.preset_apply(name="clear")
     assert bpy.ops.atmos.preset_import(filepath=str(exported)) == {"FINISHED"}
-    assert (addon / "Dusty dusk.toml").read_bytes() == exported.read_bytes()
+    assert (user_presets / "Dusty dusk.toml").read_bytes() == exported.read_bytes()
     assert scene.atmos.preset_name == "Dusty dusk"
     assert_settings_match(scene, current)
     with pytest.raises(RuntimeError, match="exists"):
@@ -413,7 +405,7 @@ BAD_FILES = {
 
 
 @pytest.mark.parametrize("kind", BAD_FILES)
-def test_bad_preset_files_are_refused_and_change_nothing(addon, tmp_path, kind):
+def test_bad_preset_files_are_refused_and_change_nothing(user_presets, tmp_path, kind):
     text, field, rule = BAD_FILES[kind]
     scene = bpy.context.scene
     add_sun(scene, 33.0)
@@ -426,11 +418,11 @@ def test_bad_preset_files_are_refused_and_change_nothing(addon, tmp_path, kind):
         bpy.ops.atmos.preset_import(filepath=str(bad))
     message = str(raised.value)
     assert "bad.toml" in message and field in message and rule in message, message
-    assert not (addon / "bad.toml").exists()
+    assert not (user_presets / "bad.toml").exists()
     assert snapshot(scene) == before
     # the same file already in the library: applying it by name is refused the same way
-    addon.mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(bad, addon / "bad.toml")
+    user_presets.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(bad, user_presets / "bad.toml")
     with pytest.raises(RuntimeError) as raised:
         bpy.ops.atmos.preset_apply(name="bad")
     assert field in str(raised.value) and rule in str(raised.value)
@@ -442,7 +434,7 @@ def test_bad_preset_files_are_refused_and_change_nothing(addon, tmp_path, kind):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-def test_every_builtin_renders_without_nan(addon, engine):
+def test_every_builtin_renders_without_nan(user_presets, engine):
     scene = bpy.context.scene
     tiny_scene(scene, engine, 16, 16)
     means = []
@@ -473,7 +465,7 @@ def _read_png(path: Path) -> np.ndarray:
     return pixels.reshape(height, width, 4)[::-1]
 
 
-def test_contact_sheet_size_cells_labels_and_scene_restored(addon, tmp_path):
+def test_contact_sheet_size_cells_labels_and_scene_restored(user_presets, tmp_path):
     scene = bpy.context.scene
     tiny_scene(scene, "CYCLES", 16, 16)
     bpy.ops.atmos.preset_apply(name="sunset")
@@ -500,7 +492,7 @@ def test_contact_sheet_size_cells_labels_and_scene_restored(addon, tmp_path):
         assert (np.abs(strip - background).max(axis=-1) > 0.1).sum() >= 10  # some ink in every label
 
 
-def test_contact_sheet_cancel_and_bad_preset_restore_the_scene(addon, tmp_path):
+def test_contact_sheet_cancel_and_bad_preset_restore_the_scene(user_presets, tmp_path):
     scene = bpy.context.scene
     tiny_scene(scene, "CYCLES", 16, 16)
     bpy.ops.atmos.preset_apply(name="overcast")
@@ -518,7 +510,7 @@ def test_contact_sheet_cancel_and_bad_preset_restore_the_scene(addon, tmp_path):
     assert snapshot(scene) == before
 
 
-def test_contact_sheet_operator_runs_synchronously_in_background(addon, tmp_path):
+def test_contact_sheet_operator_runs_synchronously_in_background(user_presets, tmp_path):
     scene = bpy.context.scene
     tiny_scene(scene, "CYCLES", 16, 16)
     bpy.data.objects.remove(scene.objects["Sun"])  # the sheet creates a sun lamp to point, then removes it

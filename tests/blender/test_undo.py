@@ -23,9 +23,10 @@ import pytest
 from atmos_addon.blender.apply import materials
 from atmos_addon.blender import scene_reading
 
-from test_robustness import addon  # noqa: F401  (autouse: a factory-fresh file with the add-on registered)
 from test_robustness import (compositor_state, lamp_direction, mesh_object, orphan_groups, small_scene, snapshot,
                              user_compositor, user_material)
+
+pytestmark = pytest.mark.usefixtures("addon")
 
 SETTINGS = ("enabled", "quality", "render_mode", "sky_enabled", "drive_sun_lamp", "rayleigh_scattering_per_km",
             "mie_scattering_per_km", "mie_absorption_per_km", "mie_g", "distance_scale", "status_sun")

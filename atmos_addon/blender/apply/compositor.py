@@ -36,9 +36,7 @@ from ... import nodes
 from ...plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_TRANSMITTANCE, AOV_VIEW, AOVS
 from ..tree_edits import TAG
 
-GROUP_NAME = "Atmos Aerial Composite"
-GROUP_VERSION = 1
-VERSION_KEY = "atmos_version"
+GROUP_NAME = nodes.stamps.COMPOSITE.name
 STATE_KEY = "atmos_compositor"
 COMPOSITE_NODE = "Atmos Aerial Composite"
 CREATED_TREE_NAME = "Atmos Compositor"
@@ -60,93 +58,6 @@ def _silently(function, *args):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         return function(*args)
-
-
-# -- the combining node group ------------------------------------------------------------------
-
-
-def _mix(nodes, blend: str, location):
-    if GROUP_API:
-        node = nodes.new("ShaderNodeMix")
-        node.data_type = "RGBA"
-        node.blend_type = blend
-        node.clamp_result = False
-        inputs = {socket.identifier: socket for socket in node.inputs}
-        inputs["Factor_Float"].default_value = 1.0
-        out = next(socket for socket in node.outputs if socket.identifier == "Result_Color")
-        a, b = inputs["A_Color"], inputs["B_Color"]
-    else:
-        node = nodes.new("CompositorNodeMixRGB")
-        node.blend_type = blend
-        node.use_clamp = False
-        node.inputs[0].default_value = 1.0
-        a, b, out = node.inputs[1], node.inputs[2], node.outputs[0]
-    node.location = location
-    return a, b, out
-
-
-def _math(nodes, operation: str, location, *, clamp: bool = False):
-    node = nodes.new("ShaderNodeMath" if GROUP_API else "CompositorNodeMath")
-    node.operation = operation
-    node.use_clamp = clamp
-    node.location = location
-    return node
-
-
-def _build_group(tree) -> None:
-    tree.nodes.clear()
-    tree.interface.clear()
-    for name, socket_type in (
-        ("Image", "NodeSocketColor"),
-        ("Transmittance", "NodeSocketColor"),
-        ("Inscattering", "NodeSocketColor"),
-        ("Coverage", "NodeSocketFloat"),
-    ):
-        tree.interface.new_socket(name, in_out="INPUT", socket_type=socket_type)
-    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
-    nodes, links = tree.nodes, tree.links
-    group_in = nodes.new("NodeGroupInput")
-    group_in.location = (-600, 0)
-    group_out = nodes.new("NodeGroupOutput")
-    group_out.location = (800, 0)
-
-    k = _math(nodes, "MAXIMUM", (-350, -300))
-    links.new(group_in.outputs["Coverage"], k.inputs[0])
-    k.inputs[1].default_value = 1.0
-    uncovered = _math(nodes, "SUBTRACT", (-350, -120), clamp=True)
-    uncovered.inputs[0].default_value = 1.0
-    links.new(group_in.outputs["Coverage"], uncovered.inputs[1])
-
-    a, b, factor_sum = _mix(nodes, "ADD", (-100, 100))
-    links.new(group_in.outputs["Transmittance"], a)
-    links.new(uncovered.outputs[0], b)
-    a, b, factor = _mix(nodes, "DIVIDE", (100, 100))
-    links.new(factor_sum, a)
-    links.new(k.outputs[0], b)
-    a, b, attenuated = _mix(nodes, "MULTIPLY", (300, 200))
-    links.new(group_in.outputs["Image"], a)
-    links.new(factor, b)
-    a, b, inscattering = _mix(nodes, "DIVIDE", (300, -150))
-    links.new(group_in.outputs["Inscattering"], a)
-    links.new(k.outputs[0], b)
-    a, b, result = _mix(nodes, "ADD", (550, 0))
-    links.new(attenuated, a)
-    links.new(inscattering, b)
-    links.new(result, group_out.inputs["Image"])
-    tree[VERSION_KEY] = GROUP_VERSION
-
-
-def ensure_composite_group():
-    """Get or create the "Atmos Aerial Composite" compositor group; rebuilt in place when stale."""
-    tree = bpy.data.node_groups.get(GROUP_NAME)
-    if tree is not None and tree.bl_idname != "CompositorNodeTree":
-        tree.name = GROUP_NAME + " (not Atmos)"
-        tree = None
-    if tree is None:
-        tree = bpy.data.node_groups.new(GROUP_NAME, "CompositorNodeTree")
-    if tree.get(VERSION_KEY) != GROUP_VERSION:
-        _build_group(tree)
-    return tree
 
 
 # -- view layer AOVs ---------------------------------------------------------------------------
@@ -197,7 +108,7 @@ def _tag(node, name: str):
 def _scene_tree(scene, state: dict):
     """The scene's compositor tree, created (and recorded for removal) when there is none."""
     if GROUP_API:
-        tree = _current_tree(scene)
+        tree = current_tree(scene)
         state.setdefault("had_group", tree is not None)
         if tree is None:
             if EFFECT_STACK:
@@ -262,7 +173,7 @@ def ensure_per_pixel_group(features):
     per_pixel = nodes.per_pixel
     old = bpy.data.node_groups.get(per_pixel.GROUP_NAME)
     before = None if old is None else (len(old.interface.items_tree), old.get(per_pixel.FEATURES_KEY))
-    tree = per_pixel.ensure_per_pixel_group(features, ensure_composite_group())
+    tree = per_pixel.ensure_per_pixel_group(features, nodes.composite.ensure_composite_group())
     if before is not None and (len(tree.interface.items_tree), tree.get(per_pixel.FEATURES_KEY)) != before:
         for scene in bpy.data.scenes:
             for node in _installed_nodes(scene):
@@ -317,7 +228,7 @@ def revalidate_drivers(scene) -> None:
     the Precise tile parameters, written by the table bake after the group node was driven (the bake calls this
     once they exist), and the camera's z in a scene that had no camera (the depsgraph handler calls this when
     the camera changes)."""
-    tree = _current_tree(scene)
+    tree = current_tree(scene)
     animation = None if tree is None else tree.animation_data
     if animation is None:
         return
@@ -364,7 +275,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
     state["evaluation"] = evaluation
     per_pixel = evaluation == "PER_PIXEL"
     declare_aovs(scene, state, AOVS[evaluation])
-    group = ensure_per_pixel_group(features) if per_pixel else ensure_composite_group()
+    group = ensure_per_pixel_group(features) if per_pixel else nodes.composite.ensure_composite_group()
     tree = _scene_tree(scene, state)
     state.setdefault("created_animation_data", tree.animation_data is None)
     final_input = _output_input(tree, state)
@@ -423,22 +334,24 @@ def _remove_viewer_images_created_since(names_before) -> None:
 
 
 def _installed_nodes(scene) -> list:
-    tree = _current_tree(scene)
+    tree = current_tree(scene)
     if tree is None:
         return []
     return [node for node in tree.nodes if node.get(TAG) and node.name.startswith(COMPOSITE_NODE)]
 
 
-def _current_tree(scene):
+def current_tree(scene):
+    """The scene's compositing node tree (Blender 5's node group, 4.5's scene tree), or None."""
     if GROUP_API:
         return _silently(getattr, scene, "compositing_node_group")
     return scene.node_tree
 
 
 def uninstall(scene) -> None:
-    """Undo :func:`install`: relink, remove our nodes, AOVs and tree, restore the scene's switches."""
+    """Undo :func:`install`: relink, remove our nodes, AOVs and tree, restore the scene's switches (the groups
+    left unused go with :func:`atmos_addon.nodes.registry.remove_unused`)."""
     state = scene[STATE_KEY].to_dict() if STATE_KEY in scene else {}
-    tree = _current_tree(scene)
+    tree = current_tree(scene)
     if tree is not None:
         for node in [n for n in tree.nodes if n.get(TAG) and n.name.startswith(COMPOSITE_NODE)]:
             _remove_drivers(node)
@@ -479,9 +392,3 @@ def uninstall(scene) -> None:
         scene.render.use_compositing = bool(state["use_compositing"])
     if STATE_KEY in scene:
         del scene[STATE_KEY]
-    per_pixel_group = bpy.data.node_groups.get(nodes.per_pixel.GROUP_NAME)
-    if per_pixel_group is not None and per_pixel_group.users == 0:
-        bpy.data.node_groups.remove(per_pixel_group)
-    group = bpy.data.node_groups.get(GROUP_NAME)
-    if group is not None and group.users == 0:
-        bpy.data.node_groups.remove(group)

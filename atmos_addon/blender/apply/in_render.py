@@ -177,7 +177,7 @@ def _dome_material(species: str):
         warnings.simplefilter("ignore", DeprecationWarning)
         material.use_nodes = True
     tree = material.node_tree
-    if tree.get("atmos_version") != _groups().IN_RENDER_GROUP_VERSION or tree.get("atmos_features") != species:
+    if not nodes.stamps.is_current(tree, nodes.stamps.DOME_VOLUME, species):
         _groups().build_dome_volume(tree, species)
     return material
 
@@ -409,13 +409,3 @@ def uninstall(scene) -> None:
             camera.clip_end = clip_end
     _restore_transparent_bounces(scene, state)
     del scene[STATE_KEY]
-
-
-def remove_unused_groups() -> None:
-    """Delete the in-render groups once nothing uses them (no orphan data after disabling)."""
-    groups = _groups()
-    aerial = nodes.aerial_perspective
-    for name in (groups.SURFACE_GROUP_NAME, groups.SKY_GROUP_NAME, aerial.SEGMENT_GROUP_NAME):
-        tree = bpy.data.node_groups.get(name)
-        if tree is not None and tree.users == 0:
-            bpy.data.node_groups.remove(tree)

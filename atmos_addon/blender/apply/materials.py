@@ -2,15 +2,9 @@
 """Injection of the aerial perspective AOVs into the materials of a scene, and their removal.
 
 Each managed material gets one node beside the user's nodes: a group node (label "Atmos Surface
-AOVs", custom property ``atmos_tag``) instancing the shared group "Atmos Surface AOVs", which holds
-
-- the "Atmos Aerial Perspective" group (outputs Transmittance and Inscattering),
-- AOV Outputs ``atmos_transmittance`` and ``atmos_inscattering`` (colour) and ``atmos_coverage``
-  (value), each weighted by the surface's opacity alpha = Opacity * (1 - Transparency);
-- for the Per Pixel mode, AOV Outputs ``atmos_distance`` (alpha times the camera distance in km) and
-  ``atmos_view`` (alpha times the unit view direction) instead of the first two and the aerial group. The group
-  holds the outputs of the modes the file's enabled scenes use (both when scenes differ); switching the mode
-  rebuilds it in place, so the materials are not edited.
+AOVs", custom property ``atmos_tag``) instancing the shared group "Atmos Surface AOVs"
+(:mod:`atmos_addon.nodes.surface`: the aerial perspective and the AOV outputs, each weighted by the surface's
+opacity alpha = Opacity * (1 - Transparency)).
 
 Where the surface has an alpha path (Principled BSDF Alpha, or a Mix Shader with a Transparent BSDF
 on one side) that socket is linked to the group's Opacity (or Transparency) input. Weighting by
@@ -36,22 +30,13 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from ...plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_TRANSMITTANCE, AOV_VIEW
+from ...nodes import surface
 from ..tree_edits import (TAG, active_of, copy_input, cycles_of, cycles_output, free_spot, output_nodes, place_last,
                           remove_tagged, surface_link, take_over_cycles_output)
 
-PREFIX = "Atmos "
-#: The AOV names (:data:`atmos_addon.plan.AOVS`); the Per Pixel mode's distance AOV holds alpha s / 1000 (s in m).
-DISTANCE_AOV_UNIT_M = 1000.0
-#: The scene custom property holding metres per scene unit (``atmos_addon.nodes.parameters.METRES_PER_UNIT``).
-METRES_PER_UNIT = "atmos_metres_per_unit"
-
-#: The one group node each managed material gets, and the group it instances.
-SURFACE_GROUP = "Atmos Surface AOVs"
-SURFACE_GROUP_VERSION = 2  # 2: the Per Pixel mode's distance and view outputs
-VERSION_KEY = "atmos_version"
-#: The evaluations whose outputs the surface group holds, e.g. "COMPOSITOR" or "COMPOSITOR,PER_PIXEL".
-EVALUATIONS_KEY = "atmos_evaluations"
+#: The one group node each managed material gets instances this group (built by :mod:`atmos_addon.nodes.surface`).
+SURFACE_GROUP = surface.SURFACE_GROUP
+ensure_surface_group = surface.ensure_surface_group
 NODE_LABEL = "Atmos Surface AOVs"
 #: Above this many materials per pass, the surface group is emptied while materials are edited (see inject_scene).
 BULK_THRESHOLD = 16
@@ -330,148 +315,6 @@ def follow_edits(depsgraph) -> None:
             keep_opaque(material)
 
 
-def _surface_group_interface(tree) -> None:
-    tree.interface.clear()
-    opacity = tree.interface.new_socket("Opacity", in_out="INPUT", socket_type="NodeSocketFloat")
-    opacity.default_value, opacity.min_value, opacity.max_value = 1.0, 0.0, 1.0
-    transparency = tree.interface.new_socket("Transparency", in_out="INPUT", socket_type="NodeSocketFloat")
-    transparency.default_value, transparency.min_value, transparency.max_value = 0.0, 0.0, 1.0
-
-
-def build_surface_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None:
-    """Build the material group in ``tree`` (its interface when missing): aerial group -> opacity weights -> AOV
-    outputs; alpha = Opacity * (1 - Transparency).
-
-    Only the outputs of the ``evaluations`` in use ("COMPOSITOR": the aerial group and the transmittance and
-    in-scattering AOVs; "PER_PIXEL": the distance and view AOVs) are built: Eevee compiles every AOV output
-    of a material, declared or not (a group holding both took Eevee 417 s to compile where one took 2 s).
-    """
-    if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
-        _surface_group_interface(tree)
-    nodes, links = tree.nodes, tree.links
-    nodes.clear()
-    group_in = nodes.new("NodeGroupInput")
-    group_in.location = (-500, -250)
-    one_minus = nodes.new("ShaderNodeMath")
-    one_minus.operation = "SUBTRACT"
-    one_minus.inputs[0].default_value = 1.0
-    one_minus.location = (-250, -300)
-    links.new(group_in.outputs["Transparency"], one_minus.inputs[1])
-    alpha = nodes.new("ShaderNodeMath")
-    alpha.operation = "MULTIPLY"
-    alpha.use_clamp = True
-    alpha.location = (-50, -250)
-    links.new(group_in.outputs["Opacity"], alpha.inputs[0])
-    links.new(one_minus.outputs[0], alpha.inputs[1])
-    per_sample = ()
-    if "COMPOSITOR" in evaluations:
-        aerial = nodes.new("ShaderNodeGroup")
-        aerial.node_tree = aerial_group
-        aerial.location = (-500, 0)
-        per_sample = (("Transmittance", AOV_TRANSMITTANCE), ("Inscattering", AOV_INSCATTERING))
-    for index, (output, aov_name) in enumerate(per_sample):
-        scale = nodes.new("ShaderNodeVectorMath")
-        scale.operation = "SCALE"
-        scale.location = (150, -180.0 * index)
-        links.new(aerial.outputs[output], scale.inputs[0])
-        links.new(alpha.outputs[0], scale.inputs["Scale"])
-        aov = nodes.new("ShaderNodeOutputAOV")
-        aov.aov_name = aov_name
-        aov.location = (400, -180.0 * index)
-        links.new(scale.outputs[0], aov.inputs["Color"])
-    coverage = nodes.new("ShaderNodeOutputAOV")
-    coverage.aov_name = AOV_COVERAGE
-    coverage.location = (400, -400)
-    links.new(alpha.outputs[0], coverage.inputs["Value"])
-    if "PER_PIXEL" in evaluations:
-        _add_per_pixel_outputs(nodes, links, alpha.outputs[0])
-    tree[VERSION_KEY] = SURFACE_GROUP_VERSION
-    tree[EVALUATIONS_KEY] = ",".join(sorted(evaluations))
-
-
-def _add_per_pixel_outputs(nodes, links, alpha) -> None:
-    """The Per Pixel mode's AOVs: alpha s / 1000 (s the camera distance in m) and alpha v (v the view direction)."""
-    camera = nodes.new("ShaderNodeCameraData")
-    camera.location = (-500, -550)
-    metres = nodes.new("ShaderNodeAttribute")
-    metres.attribute_type = "VIEW_LAYER"
-    metres.attribute_name = METRES_PER_UNIT
-    metres.location = (-500, -700)
-    unit = nodes.new("ShaderNodeMath")
-    unit.operation = "MULTIPLY"
-    unit.inputs[1].default_value = 1.0 / DISTANCE_AOV_UNIT_M
-    unit.location = (-250, -650)
-    links.new(metres.outputs["Fac"], unit.inputs[0])
-    weight = nodes.new("ShaderNodeMath")
-    weight.operation = "MULTIPLY"
-    weight.location = (-50, -600)
-    links.new(alpha, weight.inputs[0])
-    links.new(unit.outputs[0], weight.inputs[1])
-    distance = nodes.new("ShaderNodeMath")
-    distance.operation = "MULTIPLY"
-    distance.location = (150, -560)
-    links.new(camera.outputs["View Distance"], distance.inputs[0])
-    links.new(weight.outputs[0], distance.inputs[1])
-    distance_aov = nodes.new("ShaderNodeOutputAOV")
-    distance_aov.aov_name = AOV_DISTANCE
-    distance_aov.location = (400, -560)
-    links.new(distance.outputs[0], distance_aov.inputs["Value"])
-    geometry = nodes.new("ShaderNodeNewGeometry")
-    geometry.location = (-500, -850)
-    toward = nodes.new("ShaderNodeMath")
-    toward.operation = "MULTIPLY"
-    toward.inputs[1].default_value = -1.0
-    toward.location = (-50, -800)
-    links.new(alpha, toward.inputs[0])
-    view = nodes.new("ShaderNodeVectorMath")
-    view.operation = "SCALE"
-    view.location = (150, -760)
-    links.new(geometry.outputs["Incoming"], view.inputs[0])
-    links.new(toward.outputs[0], view.inputs["Scale"])
-    view_aov = nodes.new("ShaderNodeOutputAOV")
-    view_aov.aov_name = AOV_VIEW
-    view_aov.location = (400, -760)
-    links.new(view.outputs[0], view_aov.inputs["Color"])
-
-
-def _is_populated(tree, aerial_group, evaluations) -> bool:
-    return (
-        tree.get(VERSION_KEY) == SURFACE_GROUP_VERSION
-        and tree.get(EVALUATIONS_KEY) == ",".join(sorted(evaluations))
-        and ("COMPOSITOR" not in evaluations
-             or any(n.bl_idname == "ShaderNodeGroup" and n.node_tree == aerial_group for n in tree.nodes))
-    )
-
-
-def ensure_surface_group(aerial_group, evaluations=("COMPOSITOR",)):
-    """Get or create the "Atmos Surface AOVs" shader group around ``aerial_group`` with the outputs of the
-    ``evaluations`` in use (rebuilt in place when stale: the materials' group nodes keep pointing at it)."""
-    tree = bpy.data.node_groups.get(SURFACE_GROUP)
-    if tree is not None and tree.bl_idname != "ShaderNodeTree":
-        tree.name = SURFACE_GROUP + " (not Atmos)"
-        tree = None
-    if tree is None:
-        tree = bpy.data.node_groups.new(SURFACE_GROUP, "ShaderNodeTree")
-    if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
-        _surface_group_interface(tree)
-    if not _is_populated(tree, aerial_group, evaluations):
-        inner = _inner_groups(tree)
-        build_surface_group(tree, aerial_group, evaluations)
-        _remove_unused(inner)   # the aerial group, when the Compositor mode's outputs left
-    return tree
-
-
-def _inner_groups(tree) -> set:
-    return {node.node_tree for node in tree.nodes if node.bl_idname == "ShaderNodeGroup" and node.node_tree}
-
-
-def _remove_unused(groups) -> None:
-    """Delete the Atmos groups among ``groups`` that nothing uses any more (no orphans left in the file)."""
-    for group in groups:
-        if group.users == 0 and group.name.startswith(PREFIX):
-            bpy.data.node_groups.remove(group)
-
-
 def _stand_in():
     """An empty group with the surface group's interface, used by nothing yet.
 
@@ -480,7 +323,7 @@ def _stand_in():
     real group in (or out) with one ``user_remap``.
     """
     tree = bpy.data.node_groups.new(SURFACE_GROUP + " (stand-in)", "ShaderNodeTree")
-    _surface_group_interface(tree)
+    surface.surface_interface(tree)
     return tree
 
 
@@ -558,7 +401,7 @@ def inject_scene(scene, aerial_group, *, only_new: bool = False, evaluations=("C
             todo.append((material, tagged))
     if not todo and bpy.data.node_groups.get(SURFACE_GROUP) is None:
         return report  # nothing to inject: no group with zero users left in the file
-    surface_group = ensure_surface_group(aerial_group, evaluations)
+    surface_group = surface.ensure_surface_group(aerial_group, evaluations)
     target = _stand_in() if len(todo) > BULK_THRESHOLD else surface_group
     for material, tagged in todo:
         inject(material, target, tagged)
@@ -588,19 +431,3 @@ def remove_all(materials) -> list[str]:
             stand_in.user_remap(surface_group)
         _remove_stand_in(stand_in)
     return stripped
-
-
-def remove_surface_group() -> None:
-    """Delete the surface group once no material uses it, and the aerial group inside it once nothing else does.
-
-    Enabling creates both groups, so disabling the last scene removes both: after the effect was on and
-    off again the file holds no Atmos data-block with zero users (orphans that would stay in the session
-    and in Orphan Data until the file is saved and reopened). A group with a fake user or another user
-    (a user's own material, the sky) stays.
-    """
-    tree = bpy.data.node_groups.get(SURFACE_GROUP)
-    if tree is None or tree.users != 0:
-        return
-    inner = _inner_groups(tree)
-    bpy.data.node_groups.remove(tree)
-    _remove_unused(inner)

@@ -19,8 +19,7 @@ import bpy
 import numpy as np
 from mathutils import Euler, Matrix
 
-from ...physics import sun_color_and_strength
-from .. import scene_reading, settings_io
+from .. import scene_reading
 
 #: Name of the lamp :func:`ensure_sun_lamp` creates when the scene has none.
 CREATED_SUN_NAME = "Atmos Sun"
@@ -81,16 +80,6 @@ def sun_angles(scene: bpy.types.Scene) -> tuple[float, float]:
     """(elevation, azimuth) of the sun in rad, read from the lamp (the default sun when there is none)."""
     direction, _ = scene_reading.sun_direction(scene)
     return angles_from_direction(direction)
-
-
-def lamp_values(scene: bpy.types.Scene, elevation_rad: float) -> tuple[tuple[float, float, float], float, float]:
-    """(colour, strength W/m^2, angle rad) of the sun lamp for the scene's atmosphere and a sun elevation."""
-    settings = scene.atmos
-    atmosphere = settings_io.atmosphere_from_settings(settings)
-    diameter = float(settings.sun_angular_diameter)
-    colour, strength = sun_color_and_strength(elevation_rad, atmosphere, 0.0, 0.5 * diameter,
-                                              float(settings.sun_limb_darkening))
-    return tuple(float(c) for c in colour), float(strength), diameter
 
 
 def differs(old, new) -> bool:

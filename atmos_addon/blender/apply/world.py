@@ -25,6 +25,7 @@ import warnings
 
 import bpy
 
+from ...nodes import registry, stamps
 from ..scene_reading import groups
 from ..tree_edits import REACTIVATE_KEY, TAG
 
@@ -178,7 +179,7 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
     background.location = (x - 200.0, y - 320.0)
     tree.links.new(sky.outputs[0], background.inputs["Color"])
     tree.links.new(background.outputs["Background"], surface)
-    _remove_unused_lighting_groups()   # that of a world deleted since the last install: the new one takes its name
+    registry.remove_unused((stamps.SKY_LIGHTING,))   # that of a world deleted since: the new one takes its name
     _add_lighting_branch(tree, features, background)
     scene[STATE_KEY] = state
     return f"Sky: in world '{world.name}'" + (" (created)" if "created_world" in state else "")
@@ -199,15 +200,11 @@ def uninstall_sky(scene: bpy.types.Scene) -> None:
             bpy.data.worlds.remove(world)
     elif world is not None and world.node_tree is not None:
         tree = world.node_tree
-        lighting = [n.node_tree for n in tagged_nodes(world) if n.get(TAG) == LIGHTING_TAG]
         reactivate = next((n.get(REACTIVATE_KEY) for n in tagged_nodes(world) if n.get(REACTIVATE_KEY)), None)
         for node in tagged_nodes(world):
             tree.nodes.remove(node)
         if reactivate and tree.nodes.get(reactivate) is not None:
             tree.nodes[reactivate].is_active_output = True
-        for group in lighting:
-            if group is not None and group.users == 0:
-                bpy.data.node_groups.remove(group)
         output = tree.nodes.get(state.get("output", ""))
         previous = state.get("previous")
         if output is not None and previous:
@@ -223,21 +220,7 @@ def uninstall_sky(scene: bpy.types.Scene) -> None:
                 warnings.simplefilter("ignore", DeprecationWarning)
                 world.use_nodes = False
     del scene[STATE_KEY]
-    remove_unused_sky_group()
-
-
-def remove_unused_sky_group() -> None:
-    """Delete the "Atmos Sky" node group and lighting groups once no world uses them (no orphan data left)."""
-    _remove_unused_lighting_groups()
-    sky = bpy.data.node_groups.get(groups().sky.SKY_GROUP_NAME)
-    if sky is not None and sky.users == 0:
-        bpy.data.node_groups.remove(sky)
-
-
-def _remove_unused_lighting_groups() -> None:
-    module = groups().sky_lighting
-    for group in [g for g in bpy.data.node_groups if g.users == 0 and module.is_sky_lighting_group(g)]:
-        bpy.data.node_groups.remove(group)
+    registry.remove_unused((stamps.SKY, stamps.SKY_LIGHTING))
 
 
 def _table_key(atmosphere) -> str:

@@ -75,7 +75,10 @@ class ATMOS_OT_reset_groups(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            rebuilt = group_integrity.reset_groups(context.scene)
+            rebuilt = group_integrity.reset_groups()
+            for scene in bpy.data.scenes:   # the values a rebuilt group reads (a lighting group's table)
+                if getattr(scene, "atmos", None) is not None and scene.atmos.enabled:
+                    orchestrator.update(scene)
         except (RuntimeError, ValueError, TypeError) as error:
             self.report({"ERROR"}, f"Atmos could not reset its node groups: {error}")
             return {"CANCELLED"}

@@ -1,0 +1,112 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The "Atmos Aerial Composite" compositor group: the per-pixel combination of the Compositor mode's AOVs.
+
+Per pixel the materials leave three AOV sums: ``T = sum a_i T_i``, ``L = sum a_i L_i`` and the coverage
+``C = sum a_i`` over the surfaces that wrote (alpha a_i, 1 for opaque surfaces, averaged over the pixel's samples):
+
+    k = max(C, 1)
+    out = Image * (T + max(1 - C, 0)) / k + L / k
+
+(:mod:`atmos_addon.blender.apply.compositor` says what each case gives). Blender 5.0 composites with the shader
+nodes (Math, Mix); 4.5 has compositor nodes of its own (Math, MixRGB).
+"""
+
+from __future__ import annotations
+
+import bpy
+
+from . import stamps
+
+#: Blender 5.0 replaced scene.node_tree / use_nodes by scene.compositing_node_group, and compositor trees take the
+#: shader's Math and Mix nodes.
+GROUP_API = "compositing_node_group" in bpy.types.Scene.bl_rna.properties
+
+
+def _mix(nodes, blend: str, location):
+    if GROUP_API:
+        node = nodes.new("ShaderNodeMix")
+        node.data_type = "RGBA"
+        node.blend_type = blend
+        node.clamp_result = False
+        inputs = {socket.identifier: socket for socket in node.inputs}
+        inputs["Factor_Float"].default_value = 1.0
+        out = next(socket for socket in node.outputs if socket.identifier == "Result_Color")
+        a, b = inputs["A_Color"], inputs["B_Color"]
+    else:
+        node = nodes.new("CompositorNodeMixRGB")
+        node.blend_type = blend
+        node.use_clamp = False
+        node.inputs[0].default_value = 1.0
+        a, b, out = node.inputs[1], node.inputs[2], node.outputs[0]
+    node.location = location
+    return a, b, out
+
+
+def _math(nodes, operation: str, location, *, clamp: bool = False):
+    node = nodes.new("ShaderNodeMath" if GROUP_API else "CompositorNodeMath")
+    node.operation = operation
+    node.use_clamp = clamp
+    node.location = location
+    return node
+
+
+#: The group's interface: (name, in/out, socket type).
+INTERFACE = (("Image", "INPUT", "NodeSocketColor"), ("Transmittance", "INPUT", "NodeSocketColor"),
+             ("Inscattering", "INPUT", "NodeSocketColor"), ("Coverage", "INPUT", "NodeSocketFloat"),
+             ("Image", "OUTPUT", "NodeSocketColor"))
+
+
+def _ensure_interface(tree) -> None:
+    """Give ``tree`` the group's interface, keeping it when it is already there: a rebuilt group's sockets, and so
+    the links of the compositor's group nodes to them, survive."""
+    present = [(item.name, item.in_out, item.socket_type) for item in tree.interface.items_tree
+               if item.item_type == "SOCKET"]
+    if sorted(present) == sorted(INTERFACE):   # Blender lists the outputs first
+        return
+    tree.interface.clear()
+    for name, in_out, socket_type in INTERFACE:
+        tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+
+
+def build_composite_group(tree) -> None:
+    """Build the combining group in ``tree`` (module docstring), in place: its interface is kept."""
+    tree.nodes.clear()
+    _ensure_interface(tree)
+    nodes, links = tree.nodes, tree.links
+    group_in = nodes.new("NodeGroupInput")
+    group_in.location = (-600, 0)
+    group_out = nodes.new("NodeGroupOutput")
+    group_out.location = (800, 0)
+
+    k = _math(nodes, "MAXIMUM", (-350, -300))
+    links.new(group_in.outputs["Coverage"], k.inputs[0])
+    k.inputs[1].default_value = 1.0
+    uncovered = _math(nodes, "SUBTRACT", (-350, -120), clamp=True)
+    uncovered.inputs[0].default_value = 1.0
+    links.new(group_in.outputs["Coverage"], uncovered.inputs[1])
+
+    a, b, factor_sum = _mix(nodes, "ADD", (-100, 100))
+    links.new(group_in.outputs["Transmittance"], a)
+    links.new(uncovered.outputs[0], b)
+    a, b, factor = _mix(nodes, "DIVIDE", (100, 100))
+    links.new(factor_sum, a)
+    links.new(k.outputs[0], b)
+    a, b, attenuated = _mix(nodes, "MULTIPLY", (300, 200))
+    links.new(group_in.outputs["Image"], a)
+    links.new(factor, b)
+    a, b, inscattering = _mix(nodes, "DIVIDE", (300, -150))
+    links.new(group_in.outputs["Inscattering"], a)
+    links.new(k.outputs[0], b)
+    a, b, result = _mix(nodes, "ADD", (550, 0))
+    links.new(attenuated, a)
+    links.new(inscattering, b)
+    links.new(result, group_out.inputs["Image"])
+    stamps.stamp(tree, stamps.COMPOSITE, "")
+
+
+def ensure_composite_group():
+    """Get or create the "Atmos Aerial Composite" compositor group; rebuilt in place when stale."""
+    tree = stamps.group(stamps.COMPOSITE, replace_foreign=True)
+    if not stamps.is_current(tree, stamps.COMPOSITE, ""):
+        build_composite_group(tree)
+    return tree

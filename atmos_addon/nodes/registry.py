@@ -1,0 +1,82 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Every node group Atmos manages, with how to build it again: the one table that integrity checks, resets and
+clean-ups loop over.
+
+:mod:`.stamps` names the kinds and their versions; here each kind gets the function that rebuilds a group of that
+kind in place from the features key stamped on it (what it was built for), so a reset gives back exactly the
+group the scene uses, whichever kind it is: the aerial perspective (camera and ray-segment), the sky and its
+per-world lighting table, the compositor's combining and Per Pixel groups, the material group, the In-Render
+surface and sky.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+
+import bpy
+
+from . import aerial_perspective, composite, in_render, per_pixel, sky, sky_lighting, stamps, surface
+from .sky import SkyFeatures
+from .terms import AerialFeatures
+
+
+def _rebuild_surface(tree: bpy.types.NodeTree, key: str) -> None:
+    aerial = next((group for group in surface.inner_groups(tree)
+                   if stamps.kind_of(group) == stamps.AERIAL), None)
+    key = key or str(tree.get("atmos_evaluations", ""))   # a release before the kind stamp kept the modes there
+    modes = tuple(mode for mode in key.split(",") if mode) or ("COMPOSITOR",)
+    if aerial is None and "COMPOSITOR" in modes:
+        aerial = aerial_perspective.ensure_aerial_perspective_group()
+    surface.build_surface_group(tree, aerial, modes)
+
+
+def _rebuild_sky_lighting(tree: bpy.types.NodeTree, key: str) -> None:
+    sky_lighting.build_sky_lighting(tree, SkyFeatures.from_key(key))
+    if sky_lighting.TABLE_KEY in tree:
+        del tree[sky_lighting.TABLE_KEY]   # the table is written again by the next sync
+
+
+#: kind -> rebuild(tree, its stamped features key).
+REBUILD: dict[stamps.GroupKind, Callable[[bpy.types.NodeTree, str], None]] = {
+    stamps.AERIAL: lambda tree, key: aerial_perspective.build_aerial_perspective(tree, AerialFeatures.from_key(key)),
+    stamps.AERIAL_SEGMENT: lambda tree, key: aerial_perspective.build_aerial_perspective(
+        tree, AerialFeatures.from_key(key), distance="RAY"),
+    stamps.SKY: lambda tree, key: sky.build_sky(tree, SkyFeatures.from_key(key)),
+    stamps.SKY_LIGHTING: _rebuild_sky_lighting,
+    stamps.COMPOSITE: lambda tree, key: composite.build_composite_group(tree),
+    stamps.PER_PIXEL: lambda tree, key: per_pixel.build_per_pixel_composite(
+        tree, AerialFeatures.from_key(key), composite.ensure_composite_group()),
+    stamps.SURFACE: _rebuild_surface,
+    stamps.IN_RENDER_SURFACE: lambda tree, key: in_render.build_surface_group(
+        tree, aerial_perspective.ensure_aerial_perspective_group(AerialFeatures.from_key(key), distance="RAY")),
+    stamps.IN_RENDER_SKY: lambda tree, key: in_render.build_sky_group(tree, AerialFeatures.from_key(key)),
+}
+assert set(REBUILD) == set(stamps.KINDS), "every kind needs its rebuild"
+
+
+def managed_trees() -> list[tuple[stamps.GroupKind, bpy.types.NodeTree]]:
+    """Every local node group of the file that Atmos built, with its kind, in :data:`.stamps.KINDS` order."""
+    found = [(stamps.kind_of(tree), tree) for tree in bpy.data.node_groups if tree.library is None]
+    order = {kind: index for index, kind in enumerate(stamps.KINDS)}
+    return sorted(((kind, tree) for kind, tree in found if kind is not None), key=lambda item: order[item[0]])
+
+
+def rebuild(tree: bpy.types.NodeTree) -> None:
+    """Rebuild a managed group in place for the features stamped on it (its identity and links kept)."""
+    kind = stamps.kind_of(tree)
+    if kind is None:
+        raise ValueError(f"node group {tree.name!r} is not one Atmos built")
+    REBUILD[kind](tree, str(tree.get(stamps.FEATURES_KEY, "")))
+
+
+def remove_unused(kinds: Iterable[stamps.GroupKind] | None = None) -> list[str]:
+    """Delete every managed group (of ``kinds``, all when None) that nothing uses, so a file the effect left holds
+    no Atmos orphans; the names deleted. Groups that use others go first, so those become unused in turn. A group
+    with a fake user, or used by the artist's own material, stays."""
+    wanted = set(stamps.KINDS if kinds is None else kinds)
+    removed = []
+    for kind, tree in reversed(managed_trees()):
+        if kind in wanted and tree.users == 0:
+            removed.append(tree.name)
+            bpy.data.node_groups.remove(tree)
+    return removed

@@ -1,0 +1,92 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The one version scheme of the node groups Atmos builds.
+
+Every group carries three custom properties: its kind (:data:`KIND_KEY`, the kind's name), the version of the
+builder that made it (:data:`VERSION_KEY`) and the key of the features it was built for (:data:`FEATURES_KEY`, e.g.
+"rayleigh+mie+abs+balanced"). A group whose stamp differs from what is asked for is rebuilt in place: the
+data-block keeps its identity and interface, so the group nodes in materials, worlds and compositors keep their
+links. Bump a kind's version here when its builder's output changes; :mod:`.registry` lists how each kind is built.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import bpy
+
+KIND_KEY = "atmos_group"
+VERSION_KEY = "atmos_version"
+FEATURES_KEY = "atmos_features"
+
+
+@dataclass(frozen=True)
+class GroupKind:
+    """A node group Atmos manages: its data-block name, tree type and builder version."""
+
+    name: str
+    tree_type: str
+    version: int
+    #: One group per world (named ``name``, ``name.001``...) instead of one per file.
+    per_world: bool = False
+
+
+#: Versions: aerial 2 lengths clamped to the virtual sky dome, 3 the layered dome, 4 powers and no phi1, 5 Precise
+#: distances taken at most to the top of the atmosphere; sky 2 the layered dome, 3 powers and no phi1 (the aerial
+#: group's terms); surface 2 the Per Pixel mode's outputs, 3 stamped by kind with its modes as features; Per Pixel 4;
+#: In-Render 3 the dome's square roots by one Gamma node.
+AERIAL = GroupKind("Atmos Aerial Perspective", "ShaderNodeTree", 5)
+AERIAL_SEGMENT = GroupKind("Atmos Aerial Perspective (Ray Segment)", "ShaderNodeTree", 5)
+SKY = GroupKind("Atmos Sky", "ShaderNodeTree", 3)
+SKY_LIGHTING = GroupKind("Atmos Sky Lighting", "ShaderNodeTree", 1, per_world=True)
+SURFACE = GroupKind("Atmos Surface AOVs", "ShaderNodeTree", 3)
+COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 1)
+PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 4)
+IN_RENDER_SURFACE = GroupKind("Atmos In-Render Surface", "ShaderNodeTree", 3)
+IN_RENDER_SKY = GroupKind("Atmos In-Render Sky", "ShaderNodeTree", 3)
+#: Not a node group: the tree of each haze dome's material (In-Render mode), its features key the species.
+DOME_VOLUME = GroupKind("Atmos Dome", "ShaderNodeTree", 3)
+#: Every kind, in build order (a group that instances another comes after it).
+KINDS = (AERIAL, AERIAL_SEGMENT, SKY, SKY_LIGHTING, SURFACE, COMPOSITE, PER_PIXEL, IN_RENDER_SURFACE, IN_RENDER_SKY)
+#: The key stamped by releases before the kind key on the per-world lighting groups (their names are numbered).
+_LEGACY_SKY_LIGHTING_KEY = "atmos_sky_lighting"
+
+
+def stamp(tree: bpy.types.NodeTree, kind: GroupKind, features_key: str) -> None:
+    """Record that ``tree`` is ``kind``'s group built by the current builder for ``features_key``."""
+    tree[KIND_KEY] = kind.name
+    tree[VERSION_KEY] = kind.version
+    tree[FEATURES_KEY] = features_key
+
+
+def is_current(tree: bpy.types.NodeTree, kind: GroupKind, features_key: str) -> bool:
+    """True when ``tree`` is ``kind``'s group as the current builder makes it for ``features_key``."""
+    return (tree.get(KIND_KEY) == kind.name and tree.get(VERSION_KEY) == kind.version
+            and tree.get(FEATURES_KEY) == features_key)
+
+
+def kind_of(tree: bpy.types.NodeTree | None) -> GroupKind | None:
+    """The kind of a group Atmos built (also one built by a release before the kind key), or None."""
+    if tree is None:
+        return None
+    name = tree.get(KIND_KEY)
+    if name is None:
+        if tree.get(_LEGACY_SKY_LIGHTING_KEY):
+            return SKY_LIGHTING
+        name = tree.name
+    return next((kind for kind in KINDS if kind.name == name and tree.bl_idname == kind.tree_type), None)
+
+
+def group(kind: GroupKind, *, replace_foreign: bool = False) -> bpy.types.NodeTree:
+    """``kind``'s data-block (a per-file kind), created when missing. A data-block of that name that is not of the
+    kind's tree type is renamed "... (not Atmos)" and replaced when ``replace_foreign``, else an error the user must
+    resolve (its users would otherwise silently change)."""
+    tree = bpy.data.node_groups.get(kind.name)
+    if tree is not None and tree.bl_idname != kind.tree_type:
+        if not replace_foreign:
+            raise TypeError(f'Node group "{kind.name}" exists but is a {tree.bl_idname}, not a {kind.tree_type}; '
+                            f"rename or delete it, then apply Atmos again")
+        tree.name = kind.name + " (not Atmos)"
+        tree = None
+    if tree is None:
+        tree = bpy.data.node_groups.new(kind.name, kind.tree_type)
+    return tree
