@@ -16,13 +16,14 @@ Progress goes to stderr; a failure ends in one line ``atmos: error: ...`` and ex
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import os
 import sys
 import time
 from pathlib import Path
 
-from . import api, import_sibling
+from . import api
 from . import presets as preset_library
 
 SAMPLE_SCENES = ("valley", "mars")
@@ -110,11 +111,7 @@ def _open_scene(spec: str):
 
     path = Path(spec)
     if spec in SAMPLE_SCENES and not path.exists():
-        try:
-            module = import_sibling(f"sample_scenes.{spec}")
-        except ImportError as error:
-            raise CliError(f"sample scene '{spec}' needs a source checkout of Atmos ({error})") from error
-        return module.build()
+        return importlib.import_module(f"{__package__}.sample_scenes.{spec}").build()
     if not path.is_file():
         raise CliError(f"scene file '{spec}' does not exist (give a .blend file, or one of: {', '.join(SAMPLE_SCENES)})")
     try:

@@ -138,6 +138,10 @@ def level_for(facts: SceneFacts, mode: str) -> tuple[str, str | None]:
     return level, None
 
 
+#: Eevee's viewport shows the haze through the viewport compositor, which the user switches on.
+VIEWPORT_EEVEE_HINT = "Viewport: Shading > Compositor to Always"
+
+
 def viewport_note(engine: str, mode: str) -> str:
     """What the 3D viewport's Rendered shading shows of the aerial perspective, in one line.
 
@@ -146,12 +150,12 @@ def viewport_note(engine: str, mode: str) -> str:
     which gets Eevee's AOVs but no passes at all from Cycles. Other engines (Workbench) run no material nodes.
     """
     if engine == "CYCLES" and mode == "IN_RENDER":
-        return "Viewport: the haze shows in Rendered shading"
+        return "Viewport: haze shows in Rendered shading"
     if engine not in EEVEE_ENGINES and engine != "CYCLES":
-        return "This engine renders no Atmos haze: use Eevee or Cycles"
+        return "This engine renders no Atmos haze"
     if engine == "CYCLES":
-        return "Viewport: no haze in Cycles in this mode (no passes); In-Render mode shows it"
-    return "Viewport: set Viewport Shading > Compositor to Always to see the haze"
+        return "Cycles viewport: no haze; In-Render has it"
+    return VIEWPORT_EEVEE_HINT
 
 
 def clip_note(facts: SceneFacts) -> str | None:

@@ -59,6 +59,7 @@ def _check(mode, quality, auto_level, engine, osl, others, multiple):
     # viewport
     if engine == "CYCLES":
         assert ("shows in Rendered shading" in result.viewport) == (expected_mode == "IN_RENDER")
+        assert ("no haze" in result.viewport) == (expected_mode != "IN_RENDER")
     elif engine == "BLENDER_WORKBENCH":
         assert "renders no Atmos haze" in result.viewport
     else:

@@ -3,7 +3,7 @@
 
     .venv/bpy-5.0.1/bin/python tools/bench_in_render.py [--resolution 320x180] [--samples 64] [--repeats 3]
 
-Method. The valley (``sample_scenes/valley.py``) is built once at the given resolution and rendered with Cycles
+Method. The valley (``atmos_addon/sample_scenes/valley.py``) is built once at the given resolution and rendered with Cycles
 on the CPU: ``samples`` samples per pixel with adaptive sampling off (every configuration traces the same
 number of camera paths), a fixed seed, denoising off, the scene's own bounces and pixel filter, ``threads``
 render threads. Three configurations of the same file:
@@ -51,7 +51,7 @@ import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
 from atmos_addon.blender import facts
 from atmos_addon.blender.apply import in_render  # noqa: E402
-from sample_scenes import valley  # noqa: E402
+from atmos_addon.sample_scenes import valley  # noqa: E402
 
 CONFIGS = ("off", "Compositor", "In-Render")
 

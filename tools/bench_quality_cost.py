@@ -4,7 +4,7 @@
     .venv/bpy-5.0.1/bin/python tools/bench_quality_cost.py [--engines cycles,eevee] [--resolution 320x180]
         [--samples 64] [--repeats 3] [--decompose] [--only off,fast-per-pixel-aerial-only,...]
 
-Method. The valley (``sample_scenes/valley.py``) is built once and rendered in Compositor mode (the mode both
+Method. The valley (``atmos_addon/sample_scenes/valley.py``) is built once and rendered in Compositor mode (the mode both
 engines share) with ``api.enable(scene, preset, quality=...)``: "off" is the effect disabled (the valley's
 plain world), "fast" and "balanced" the two levels (the Atmos sky is the same for both). Cycles renders on the
 CPU with ``samples`` samples, adaptive sampling off, a fixed seed and denoising off; Eevee with ``samples``
@@ -51,7 +51,7 @@ from tools.bench import cpu_model  # noqa: E402  (one definition for the bench t
 import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
 from atmos_addon.blender.apply.materials import TAG  # noqa: E402  (the tag on nodes the add-on made)
-from sample_scenes import valley  # noqa: E402
+from atmos_addon.sample_scenes import valley  # noqa: E402
 
 CONFIGS = ("off", "fast", "fast-per-pixel", "balanced", "balanced-per-pixel", "precise", "precise-per-pixel")
 

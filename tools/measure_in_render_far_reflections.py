@@ -39,7 +39,7 @@ import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
 from atmos_addon.blender.apply import in_render
 from atmos_addon.blender import orchestrator  # noqa: E402
-from sample_scenes import valley  # noqa: E402
+from atmos_addon.sample_scenes import valley  # noqa: E402
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 #: (pixel column, elevation of the reflected ray in deg, its x direction)

@@ -18,7 +18,7 @@ exp(-sum_i sigma_i h / sin e), h the height of the camera above p. The filters m
 exp(sigma_i l_i - tau_i(d)), which cancels r: this tool measures what is left (expected: 0 up to noise and the
 pixel filter) next to the r the filters remove (the "without the filters" columns).
 
-Scene: ``sample_scenes/valley.py`` with its lake made a perfect mirror (Glossy BSDF, white, roughness 0) and
+Scene: ``atmos_addon/sample_scenes/valley.py`` with its lake made a perfect mirror (Glossy BSDF, white, roughness 0) and
 extended from the shore (y = -5 m) to the foot of the first ridge (y = 1000 m), x = +-1000 m, at the lake's
 height (z = -0.3 m); the "clear" preset, the Atmos sky, Cycles on the CPU, Standard view transform, 32-bit EXR.
 
@@ -70,7 +70,7 @@ from atmos_addon.blender.apply import in_render  # noqa: E402
 from atmos_addon.blender import facts, scene_reading  # noqa: E402
 from atmos_addon.physics.dome_mesh import dome_radius  # noqa: E402
 from render_utils import render_to_array, route_compositor_output  # noqa: E402
-from sample_scenes import valley  # noqa: E402
+from atmos_addon.sample_scenes import valley  # noqa: E402
 
 LAKE_Z = -0.3
 MIRROR_NAME = "Mirror lake"

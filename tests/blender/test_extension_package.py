@@ -37,6 +37,10 @@ INSTALL_SCRIPT = textwrap.dedent(
     result["disabled_cleanly"] = not hasattr(bpy.types.Scene, "atmos")
     addon_utils.enable("bl_ext.user_default.atmos", default_set=True)
     result["reenabled"] = hasattr(bpy.types.Scene, "atmos")
+    # `blender --command atmos render valley ...` runs this function: the sample scene ships in the extension
+    from bl_ext.user_default.atmos.atmos_addon import cli
+    result["render_valley"] = cli.main(["render", "valley", "--preset", "clear", "--engine", "cycles",
+                                        "--resolution", "16x8", "--samples", "1", "--output", sys.argv[2]])
     print("ATMOS_RESULT " + json.dumps(result))
     """
 )
@@ -53,7 +57,8 @@ def test_zip_holds_the_extension_and_nothing_else(extension_zip: Path) -> None:
     assert "__init__.py" in names
     assert "atmos_addon/physics/__init__.py" in names
     assert "atmos_addon/nodes/__init__.py" in names
-    for excluded in ("tests/", "sample_scenes/", ".ci/", "tools/", ".venv/", "Makefile", "run", "requirements.txt"):
+    assert "atmos_addon/sample_scenes/valley.py" in names and "atmos_addon/sample_scenes/mars.py" in names
+    for excluded in ("tests/", ".ci/", "tools/", ".venv/", "Makefile", "run", "requirements.txt"):
         assert not any(name == excluded or name.startswith(excluded) for name in names), excluded
     assert not any(name.endswith((".pyc", ".blend")) for name in names)
 
@@ -62,7 +67,7 @@ def test_zip_installs_and_enables_in_a_fresh_blender(extension_zip: Path, tmp_pa
     env = dict(os.environ, HOME=str(tmp_path), XDG_CONFIG_HOME=str(tmp_path / ".config"))
     env.pop("PYTHONPATH", None)
     proc = subprocess.run(
-        [sys.executable, "-c", INSTALL_SCRIPT, str(extension_zip)],
+        [sys.executable, "-c", INSTALL_SCRIPT, str(extension_zip), str(tmp_path / "valley.png")],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600,
     )
     lines = [line for line in proc.stdout.splitlines() if line.startswith("ATMOS_RESULT ")]
@@ -72,3 +77,4 @@ def test_zip_installs_and_enables_in_a_fresh_blender(extension_zip: Path, tmp_pa
     assert result["enabled"] and result["scene_property"]
     assert result["module_file"].startswith(str(tmp_path)), "the installed copy must be the one loaded"
     assert result["disabled_cleanly"] and result["reenabled"]
+    assert result["render_valley"] == 0 and (tmp_path / "valley.png").is_file(), proc.stderr[-3000:]

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 import atmos_addon
+from atmos_addon import plan as plan_module
 from atmos_addon import presets
 from atmos_addon.blender.ui import contact_sheet, preset_ops, panel as ui_panel
 from atmos_addon.blender import orchestrator, registration, scene_reading, settings_io
@@ -180,6 +181,9 @@ class RecordingLayout:
     def prop(self, data, name, **kwargs):
         assert name in data.bl_rna.properties.keys(), f"{type(data).__name__} has no property {name!r}"
         self._check(kwargs)
+        if "placeholder" in kwargs:
+            assert isinstance(kwargs["placeholder"], str)
+            self.calls.append(("placeholder", name, kwargs["placeholder"]))
         self.calls.append(("prop", name, kwargs.get("text")))
 
     def operator(self, idname, **kwargs):
@@ -216,9 +220,9 @@ class RecordingLayout:
     row = column = box = split = grid_flow = column_flow = _sub
 
 
-def draw_everything(scene) -> list:
+def draw_everything(scene, screen=None) -> list:
     calls: list = []
-    context = SimpleNamespace(scene=scene)
+    context = SimpleNamespace(scene=scene, screen=screen)
     for cls in ui_panel.CLASSES:
         fake = SimpleNamespace(layout=RecordingLayout(calls), bl_idname=cls.bl_idname)
         if issubclass(cls, bpy.types.Panel) and not cls.poll(context):
@@ -248,7 +252,96 @@ def test_every_panel_draws_for_every_builtin_preset(user_presets):
     calls = draw_everything(scene)
     assert ("menu", "ATMOS_MT_presets", "Mine (modified)") in calls
     assert ("label", "Odd: no output node") in calls
-    assert ("label", "Fast (constant density, Hoffman & Preetham 2002)") in calls
+    assert ("label", scene.atmos.status_quality) in calls and scene.atmos.status_quality.startswith("Fast")
+
+
+def _drawn_labels(calls: list, settings) -> list[str]:
+    """The texts drawn in the property-split label column: each property's label (its text, else its name;
+    booleans and expanded enums are drawn in the value column and left out) and each R/G/B row's label."""
+    labels = []
+    properties = settings.bl_rna.properties
+    for index, call in enumerate(calls):
+        if call[0] == "prop" and call[2] in ("R", "G", "B"):
+            if call[2] == "R":
+                label = next(c for c in reversed(calls[:index]) if c[0] == "label")
+                labels.append(label[1])
+        elif call[0] == "prop" and call[1] in properties.keys():
+            prop = properties[call[1]]
+            if prop.type == "BOOLEAN" or call[2] == "" or (prop.type == "ENUM" and call[1] == "render_mode"):
+                continue
+            labels.append(call[2] if call[2] is not None else prop.name)
+    return labels
+
+
+def test_labels_fit_the_default_width_and_channels_are_labelled(user_presets):
+    """Issue 29: at the Properties editor's default width the label column cut "Rayleigh (1/km)", "Mie Anisotropy",
+    "Top Irradiance"...; every label the panels draw, in every quality, measured with Blender's own font code
+    (``blf``), fits :data:`panel.LABEL_WIDTH_LIMIT_PX`, and per-channel values are R, G, B rows with a unit."""
+    import blf
+
+    scene = bpy.context.scene
+    add_sun(scene)
+    blf.size(0, 11)
+    seen = set()
+    for quality in ("FAST", "BALANCED", "PRECISE", "AUTO"):
+        scene.atmos.quality = quality
+        labels = _drawn_labels(draw_everything(scene), scene.atmos)
+        for label in labels:
+            width = blf.dimensions(0, label)[0]
+            assert width <= ui_panel.LABEL_WIDTH_LIMIT_PX, f"label {label!r} is {width:.0f} px wide"
+        seen.update(labels)
+    assert {"Air, 1/km", "Haze, 1/km", "Absorb, 1/km", "Haze g", "Space, W/m\u00b2", "Channels, nm"} <= seen
+    assert blf.dimensions(0, "Mie Anisotropy")[0] > ui_panel.LABEL_WIDTH_LIMIT_PX   # the test measures what was cut
+
+
+def test_sub_panels_grey_out_while_the_effect_is_off(user_presets):
+    """Issue 29: with the effect off every sub-panel (and the Sky box) greys its contents, as Blender does under a
+    header checkbox; with it on they are active."""
+    scene = bpy.context.scene
+    add_sun(scene)
+    context = SimpleNamespace(scene=scene)
+    for enabled in (False, True):
+        if enabled:
+            orchestrator.enable_effect(scene)
+        for cls in ui_panel.CLASSES:
+            if not issubclass(cls, bpy.types.Panel) or cls.bl_idname in ("ATMOS_PT_atmosphere",
+                                                                         "ATMOS_PT_atmosphere_look"):
+                continue
+            calls: list = []
+            fake = SimpleNamespace(layout=RecordingLayout(calls), bl_idname=cls.bl_idname)
+            cls.draw(fake, context)
+            actives = [call[2] for call in calls if call[:2] == ("set", "active")]
+            assert actives and actives[0] is enabled, (cls.bl_idname, enabled, actives)
+
+
+def test_the_lamp_field_shows_the_lamp_in_use(user_presets):
+    """Issue 29: with no lamp picked the Lamp field named nothing while Atmos used the first sun lamp; it now shows
+    that lamp as its placeholder, and nothing once a lamp is picked."""
+    scene = bpy.context.scene
+    assert ("placeholder", "sun_object", "No sun lamp: Atmos adds one") in draw_everything(scene)
+    sun = add_sun(scene)
+    assert ("placeholder", "sun_object", f"{sun.name} (first sun lamp)") in draw_everything(scene)
+    scene.atmos.sun_object = sun
+    assert ("placeholder", "sun_object", "") in draw_everything(scene)
+
+
+def test_quality_and_mode_are_in_one_place(user_presets):
+    """Issue 29: Quality showed twice (a dropdown and a static "Quality" sub-panel); mode and level now live in the
+    Quality sub-panel only, and Look Development no longer repeats the preset menu's Import / Export."""
+    scene = bpy.context.scene
+    add_sun(scene)
+    drawn = {}
+    context = SimpleNamespace(scene=scene)
+    for cls in ui_panel.CLASSES:
+        if issubclass(cls, bpy.types.Panel):
+            calls: list = []
+            cls.draw(SimpleNamespace(layout=RecordingLayout(calls), bl_idname=cls.bl_idname), context)
+            drawn[cls.bl_idname] = calls
+    owners = {name: [panel for panel, calls in drawn.items() if any(c[:2] == ("prop", name) for c in calls)]
+              for name in ("quality", "render_mode")}
+    assert owners == {"quality": ["ATMOS_PT_atmosphere_quality"], "render_mode": ["ATMOS_PT_atmosphere_quality"]}
+    look = drawn["ATMOS_PT_atmosphere_look"]
+    assert not any(c[0] == "operator" and c[1] in ("atmos.preset_import", "atmos.preset_export") for c in look)
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -261,9 +354,9 @@ def test_the_panel_says_what_the_viewport_shows(user_presets):
     scene = bpy.context.scene
     add_sun(scene)
     expected = {
-        ("CYCLES", "COMPOSITOR"): "no haze in Cycles in this mode",
-        ("CYCLES", "PER_PIXEL"): "no haze in Cycles in this mode",
-        ("CYCLES", "IN_RENDER"): "the haze shows in Rendered shading",
+        ("CYCLES", "COMPOSITOR"): "Cycles viewport: no haze",
+        ("CYCLES", "PER_PIXEL"): "Cycles viewport: no haze",
+        ("CYCLES", "IN_RENDER"): "haze shows in Rendered shading",
         (EEVEE_ENGINE, "COMPOSITOR"): "Compositor to Always",
         (EEVEE_ENGINE, "IN_RENDER"): "Compositor to Always",   # Eevee renders it as Compositor
         ("BLENDER_WORKBENCH", "PER_PIXEL"): "This engine renders no Atmos haze",
@@ -275,6 +368,22 @@ def test_the_panel_says_what_the_viewport_shows(user_presets):
     orchestrator.enable_effect(scene)
     scene.render.engine, scene.atmos.render_mode = "CYCLES", "COMPOSITOR"
     assert ("label", ui_panel.viewport_note(scene)) in draw_everything(scene)
+    # Eevee's hint shows only while no 3D viewport has its compositor on Always (issue 29)
+    scene.render.engine = EEVEE_ENGINE
+    hint = ("label", ui_panel.viewport_note(scene))
+    for setting, shown in (("DISABLED", True), ("CAMERA", True), ("ALWAYS", False)):
+        shading = SimpleNamespace(use_compositor=setting)
+        screen = SimpleNamespace(areas=[SimpleNamespace(type="VIEW_3D", spaces=[
+            SimpleNamespace(type="VIEW_3D", shading=shading)])])
+        assert (hint in draw_everything(scene, screen=screen)) is shown, setting
+    # every line the main panel can show fits the default width (blf, Blender's font code)
+    import blf
+
+    blf.size(0, 11)
+    lines = [ui_panel.OFF_LINE] + [plan_module.viewport_note(engine, mode) for engine in
+                                   ("CYCLES", EEVEE_ENGINE, "BLENDER_WORKBENCH") for mode in plan_module.MODES]
+    for line in lines:
+        assert blf.dimensions(0, line)[0] <= ui_panel.LINE_WIDTH_LIMIT_PX, line
 
 
 def test_the_panel_says_why_the_mode_differs_and_when_eevee_shows_a_flat_sky(user_presets):

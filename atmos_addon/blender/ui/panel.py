@@ -4,7 +4,10 @@
 Layout (top to bottom): a header switch for the whole effect (aerial perspective, sky, sun lamp);
 the preset row (menu of built-in then user presets, + to save, - to delete the current user
 preset, a menu for rename/import/export/contact sheet); sub-panels Air and Haze (with Advanced),
-Sun, Sky, Aerial Perspective, Quality and Look Development. Every control is a property of
+Sun, Sky, Quality (mode and level, the one place for both), Aerial Perspective and Look Development.
+Labels are short enough for the Properties editor's default width (:data:`LABEL_WIDTH_LIMIT_PX`); the full
+story is in each property's tooltip. Per-channel quantities are labelled R, G, B rows with their unit; the
+sub-panels grey out while the effect is off. Every control is a property of
 ``scene.atmos`` or an operator, so edits apply live and undo like any Blender value. The preset
 menu is data-driven by :mod:`atmos_addon.presets` (Blender's Python preset files are never used).
 """
@@ -14,8 +17,8 @@ from __future__ import annotations
 import bpy
 
 from ... import presets
-from ...plan import NOTE_IN_RENDER_FAST
-from .. import facts, group_integrity
+from ...plan import NOTE_IN_RENDER_FAST, VIEWPORT_EEVEE_HINT
+from .. import facts, group_integrity, scene_reading
 from . import preset_ops
 
 
@@ -114,6 +117,50 @@ def _split(layout):
 
 
 
+#: Widest label text, px at Blender's 11 px interface font and scale 1, that the property-split label column shows
+#: uncut at the Properties editor's default width (about 280 px): "Top Irradiance" (78 px with ``blf``) and
+#: "Mie Anisotropy" (81 px) came out cut in GUI Blender 5.2.2 under Xvfb (issue 29).
+LABEL_WIDTH_LIMIT_PX = 75
+#: Widest full-width line with an icon (the main panel's notes) the default width shows uncut, px.
+LINE_WIDTH_LIMIT_PX = 230
+#: The main panel's line while the effect is off.
+OFF_LINE = "Off: tick the box to add the atmosphere"
+
+
+def _channels(layout, settings, name: str, label: str) -> None:
+    """A per-channel (red, green, blue) quantity as one labelled row: the label, then R, G and B fields."""
+    split = layout.split(factor=0.4)
+    split.alignment = "RIGHT"
+    split.label(text=label)
+    row = split.row(align=True)
+    for index, channel in enumerate("RGB"):
+        row.prop(settings, name, index=index, text=channel)
+
+
+def _active_when_on(layout, settings):
+    """Grey a sub-panel's contents while the effect is off (as Blender does under a header checkbox)."""
+    layout.active = settings.enabled
+    return layout
+
+
+def lamp_placeholder(scene) -> str:
+    """What the empty Lamp field shows: the lamp Atmos uses instead (the first sun lamp), or that none is there."""
+    lamp = scene_reading.sun_object(scene)
+    if scene.atmos.sun_object is not None:
+        return ""
+    return f"{lamp.name} (first sun lamp)" if lamp is not None else "No sun lamp: Atmos adds one"
+
+
+def viewport_compositor_always(context) -> bool:
+    """True when a 3D viewport of the window shows the viewport compositor always (Eevee then shows the haze in
+    Rendered shading, so the hint to switch it on has nothing left to ask)."""
+    for area in getattr(getattr(context, "screen", None), "areas", ()):
+        if area.type == "VIEW_3D":
+            if any(space.type == "VIEW_3D" and space.shading.use_compositor == "ALWAYS" for space in area.spaces):
+                return True
+    return False
+
+
 def viewport_note(scene) -> str:
     """What the 3D viewport's Rendered shading shows of the aerial perspective, in one line (the plan's)."""
     return facts.plan_of(scene).viewport
@@ -130,16 +177,15 @@ class ATMOS_PT_atmosphere(_WorldPanel, bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        draw_preset_row(layout, context)
         settings = _settings(context)
-        layout.prop(settings, "render_mode", expand=True)
+        draw_preset_row(_active_when_on(layout.column(), settings), context)
         plan = facts.plan_of(context.scene)
         for note in plan.notes:
             if note != NOTE_IN_RENDER_FAST:   # that one is part of the quality status line
                 layout.label(text=note, icon="ERROR" if note.startswith("Camera Clip End") else "INFO")
         if not settings.enabled:
-            layout.label(text="Off: tick the box to add the atmosphere to the scene", icon="INFO")
-        else:
+            layout.label(text=OFF_LINE, icon="INFO")
+        elif not (plan.viewport == VIEWPORT_EEVEE_HINT and viewport_compositor_always(context)):
             layout.label(text=plan.viewport, icon="VIEW3D")
 
 
@@ -151,15 +197,15 @@ class ATMOS_PT_atmosphere_air(_SubPanel, bpy.types.Panel):
 
     def draw(self, context):
         settings = _settings(context)
-        layout = _split(self.layout)
+        layout = _active_when_on(_split(self.layout), settings)
         column = layout.column()
-        column.prop(settings, "haze_visibility")
+        column.prop(settings, "haze_visibility", text="Visibility")
         column.prop(settings, "air_density")
         column.separator()
         column = layout.column()
-        column.prop(settings, "rayleigh_scattering_per_km", text="Rayleigh (1/km)")
-        column.prop(settings, "mie_scattering_per_km", text="Mie (1/km)")
-        column.prop(settings, "mie_absorption_per_km", text="Absorption (1/km)")
+        _channels(column, settings, "rayleigh_scattering_per_km", "Air, 1/km")
+        _channels(column, settings, "mie_scattering_per_km", "Haze, 1/km")
+        _channels(column, settings, "mie_absorption_per_km", "Absorb, 1/km")
 
 
 class ATMOS_PT_atmosphere_advanced(_SubPanel, bpy.types.Panel):
@@ -172,17 +218,17 @@ class ATMOS_PT_atmosphere_advanced(_SubPanel, bpy.types.Panel):
 
     def draw(self, context):
         settings = _settings(context)
-        layout = _split(self.layout)
+        layout = _active_when_on(_split(self.layout), settings)
         column = layout.column()
-        column.prop(settings, "mie_g")
+        _channels(column, settings, "mie_g", "Haze g")
         column.separator()
-        column.prop(settings, "rayleigh_scale_height")
-        column.prop(settings, "mie_scale_height")
+        column.prop(settings, "rayleigh_scale_height", text="Air Layer")
+        column.prop(settings, "mie_scale_height", text="Haze Layer")
         column.separator()
-        column.prop(settings, "planet_radius")
-        column.prop(settings, "atmosphere_height")
+        column.prop(settings, "planet_radius", text="Planet Radius")
+        column.prop(settings, "atmosphere_height", text="Air Top")
         column.separator()
-        column.prop(settings, "wavelengths_nm")
+        _channels(column, settings, "wavelengths_nm", "Channels, nm")
 
 
 class ATMOS_PT_atmosphere_sun(_SubPanel, bpy.types.Panel):
@@ -193,20 +239,20 @@ class ATMOS_PT_atmosphere_sun(_SubPanel, bpy.types.Panel):
 
     def draw(self, context):
         settings = _settings(context)
-        layout = _split(self.layout)
+        layout = _active_when_on(_split(self.layout), settings)
         column = layout.column()
-        column.prop(settings, "sun_object", text="Lamp")
+        column.prop(settings, "sun_object", text="Lamp", placeholder=lamp_placeholder(context.scene))
         column.prop(settings, "sun_elevation", text="Elevation")
         column.prop(settings, "sun_azimuth", text="Azimuth")
         column.separator()
-        column.prop(settings, "sun_irradiance_top", text="Top Irradiance")
-        column.prop(settings, "sun_angular_diameter", text="Angular Diameter")
-        column.prop(settings, "sun_limb_darkening")
+        _channels(column, settings, "sun_irradiance_top", "Space, W/m\u00b2")
+        column.prop(settings, "sun_angular_diameter", text="Diameter")
+        column.prop(settings, "sun_limb_darkening", text="Limb Dark.")
         column.separator()
         ground = column.column()
         ground.enabled = False  # results, written by Atmos from the atmosphere and the sun
-        ground.prop(settings, "sun_colour_display", text="Ground Colour")
-        ground.prop(settings, "sun_strength_display", text="Ground Strength (W/m\u00b2)")
+        ground.prop(settings, "sun_colour_display", text="Ground")
+        ground.prop(settings, "sun_strength_display", text="W/m\u00b2")
         column.separator()
         column.prop(settings, "drive_sun_lamp")
         column.operator("atmos.bake_sun", icon="LIGHT_SUN")
@@ -219,21 +265,20 @@ class ATMOS_PT_atmosphere_sky(_SubPanel, bpy.types.Panel):
     bl_idname = "ATMOS_PT_atmosphere_sky"
 
     def draw_header(self, context):
-        self.layout.prop(_settings(context), "sky_enabled", text="")
+        _active_when_on(self.layout, _settings(context)).prop(_settings(context), "sky_enabled", text="")
 
     def draw(self, context):
         settings = _settings(context)
         layout = _split(self.layout)
-        layout.active = settings.sky_enabled
+        layout.active = settings.enabled and settings.sky_enabled
         column = layout.column()
         column.prop(settings, "sky_ground", text="Ground")
         albedo = column.row()
         albedo.active = settings.sky_ground == "ALBEDO"
-        albedo.prop(settings, "ground_albedo")
+        albedo.prop(settings, "ground_albedo", text="Albedo")
         if settings.enabled and settings.sky_enabled:
             precise = facts.plan_of(context.scene).sky_level == "precise"
-            column.label(text="Sky from the Precise table (this frame's bake)" if precise
-                         else "Sky from the virtual dome (Precise quality draws it from its table)")
+            column.label(text="Sky: Precise table" if precise else "Sky: virtual dome")
 
 
 class ATMOS_PT_atmosphere_aerial(_SubPanel, bpy.types.Panel):
@@ -244,15 +289,8 @@ class ATMOS_PT_atmosphere_aerial(_SubPanel, bpy.types.Panel):
 
     def draw(self, context):
         settings = _settings(context)
-        layout = _split(self.layout)
-        layout.prop(settings, "distance_scale")
-        layout.prop(settings, "quality")
-        if settings.quality == "AUTO":
-            layout.prop(settings, "auto_tolerance")
-        if settings.quality != "FAST":
-            layout.prop(settings, "origin_altitude")
-        if settings.quality == "PRECISE" or (settings.quality == "AUTO" and settings.auto_level == "precise"):
-            layout.prop(settings, "multiple_scattering")
+        layout = _active_when_on(_split(self.layout), settings)
+        layout.prop(settings, "distance_scale", text="Distance \u00d7")
         layout.operator("atmos.refresh", icon="FILE_REFRESH")
         if not settings.enabled:
             return
@@ -263,8 +301,7 @@ class ATMOS_PT_atmosphere_aerial(_SubPanel, bpy.types.Panel):
                 box.label(text=group_integrity.warning(name), icon="ERROR")
             box.operator("atmos.reset_groups", icon="LOOP_BACK")
         status = layout.column(align=True)
-        for line in (settings.status_quality, settings.status_built, settings.status_sun, settings.status_materials,
-                     settings.status_objects):
+        for line in (settings.status_built, settings.status_sun, settings.status_materials, settings.status_objects):
             if line:
                 status.label(text=line)
         if len(settings.skipped_materials):
@@ -275,15 +312,24 @@ class ATMOS_PT_atmosphere_aerial(_SubPanel, bpy.types.Panel):
 
 
 class ATMOS_PT_atmosphere_quality(_SubPanel, bpy.types.Panel):
-    """How the atmosphere is computed."""
+    """Where the haze is applied (mode) and how accurately (quality level): the one place for both."""
 
     bl_label = "Quality"
     bl_idname = "ATMOS_PT_atmosphere_quality"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        layout = self.layout
-        layout.label(text="Fast (constant density, Hoffman & Preetham 2002)", icon="CHECKMARK")
+        settings = _settings(context)
+        layout = _active_when_on(_split(self.layout), settings)
+        layout.row().prop(settings, "render_mode", expand=True)
+        layout.prop(settings, "quality")
+        if settings.quality == "AUTO":
+            layout.prop(settings, "auto_tolerance")
+        if settings.quality != "FAST":
+            layout.prop(settings, "origin_altitude", text="Altitude, m")
+        if settings.quality == "PRECISE" or (settings.quality == "AUTO" and settings.auto_level == "precise"):
+            layout.prop(settings, "multiple_scattering")
+        if settings.enabled and settings.status_quality:
+            layout.label(text=settings.status_quality)
 
 
 class ATMOS_PT_atmosphere_look(_SubPanel, bpy.types.Panel):
@@ -294,11 +340,7 @@ class ATMOS_PT_atmosphere_look(_SubPanel, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        layout = self.layout
-        layout.operator("atmos.contact_sheet", icon="IMGDISPLAY")
-        row = layout.row(align=True)
-        row.operator("atmos.preset_import", text="Import...", icon="IMPORT")
-        row.operator("atmos.preset_export", text="Export...", icon="EXPORT")
+        self.layout.operator("atmos.contact_sheet", icon="IMGDISPLAY")   # import / export: the preset menu
 
 
 CLASSES = (
@@ -309,7 +351,7 @@ CLASSES = (
     ATMOS_PT_atmosphere_advanced,
     ATMOS_PT_atmosphere_sun,
     ATMOS_PT_atmosphere_sky,
-    ATMOS_PT_atmosphere_aerial,
     ATMOS_PT_atmosphere_quality,
+    ATMOS_PT_atmosphere_aerial,
     ATMOS_PT_atmosphere_look,
 )

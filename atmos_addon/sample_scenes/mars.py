@@ -4,7 +4,8 @@
 The camera stands 1.7 m above a dune crest looking across a crater 16 km wide whose far rim is
 28 km away, with higher terrain 40 km out; materials are dusty ochres and basalt greys. The Mars
 preset (``atmos_addon/presets/builtin/mars.toml``) gives the atmosphere.
-Run: ``python sample_scenes/mars.py --output mars.blend`` (with the pip ``bpy`` module).
+Run: ``./run python -m atmos_addon.sample_scenes.mars --output mars.blend`` (with the pip ``bpy`` module), or
+``blender --command atmos render mars ...`` with the extension installed.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from sample_scenes.valley import add_camera, grid_object, material, new_scene, place_sun
+from .valley import add_camera, grid_object, material, new_scene, place_sun
 
 CAMERA_HEIGHT_M = 1.7
 SUN_ELEVATION_DEG = 25.0

@@ -4,7 +4,8 @@
 One Blender unit is one metre. The camera stands 2 m above the lake shore looking north (+Y); each
 ridge is a height-field strip at a fixed distance, wide enough to fill the view, so the render
 shows the same ground at many distances: the case aerial perspective is for.
-Run: ``python sample_scenes/valley.py --output valley.blend`` (with the pip ``bpy`` module).
+Run: ``./run python -m atmos_addon.sample_scenes.valley --output valley.blend`` (with the pip ``bpy`` module), or
+``blender --command atmos render valley ...`` with the extension installed.
 """
 
 from __future__ import annotations

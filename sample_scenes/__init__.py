@@ -1,1 +1,0 @@
-"""Scripted sample scenes (not part of the extension zip)."""
