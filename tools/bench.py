@@ -37,6 +37,19 @@ ROWS = (
 )
 
 
+def write_generated_block(path: Path, generated: str, begin_mark: str, end_mark: str, header: str) -> None:
+    """Replace the block between ``begin_mark`` and ``end_mark`` of the report ``path`` by ``generated`` (which
+    holds both marks), keeping the hand-written text around it; a new report starts with ``header``."""
+    text = path.read_text() if path.exists() else ""
+    if begin_mark in text and end_mark in text:
+        head, rest = text.split(begin_mark, 1)
+        text = head + generated + rest.split(end_mark, 1)[1]
+    else:
+        text = (text.rstrip() + "\n\n" if text else header) + generated + "\n"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+
+
 def cpu_model() -> str:
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():

@@ -48,6 +48,7 @@ if str(REPO_ROOT) not in sys.path:
 from atmos_addon.physics import Atmosphere, precise, reference, sun_irradiance_ground  # noqa: E402
 from atmos_addon.physics.sky import dome_distance_approx, sky_radiance  # noqa: E402
 from atmos_addon.physics.sun import LUMINANCE_WEIGHTS  # noqa: E402
+from tools.bench import write_generated_block  # noqa: E402  (one definition for the report tools)
 
 SUN_ELEVATIONS_DEG = (60.0, 20.0, 5.0, 1.0)
 #: Elevation of the "horizon" views, deg: just above the horizon row, where every model is defined.
@@ -277,19 +278,6 @@ def markdown_tables(ours: dict, ours_approx: dict, brute_force: dict, blender_ru
     return "\n".join(lines)
 
 
-def write_report(path: Path, generated: str) -> None:
-    """Replace the generated block of ``path`` (or append it); hand-written text around it is kept."""
-    text = path.read_text() if path.exists() else ""
-    if BEGIN_MARK in text and END_MARK in text:
-        head, rest = text.split(BEGIN_MARK, 1)
-        tail = rest.split(END_MARK, 1)[1]
-        text = head + generated + tail
-    else:
-        text = (text.rstrip() + "\n\n" if text else "# Atmos sky vs Blender's Sky Texture\n\n") + generated + "\n"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
-
-
 def _relative(path: str) -> str:
     """``path`` relative to the repository when inside it (for the command line quoted in the report)."""
     try:
@@ -325,7 +313,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"Blender {run['blender']} {model}: sun azimuth {data['sun_azimuth_deg']:g} deg, "
                   f"{data['seconds']} s", file=sys.stderr)
     if args.output:
-        write_report(args.output, generated)
+        write_generated_block(args.output, generated, BEGIN_MARK, END_MARK, "# Atmos sky vs Blender's Sky Texture\n\n")
     else:
         print(generated)
     return 0

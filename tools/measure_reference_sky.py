@@ -53,6 +53,7 @@ from atmos_addon.physics.spectral_reference import (RGB_WEIGHTS, TRIPLE_INDICES,
                                                     aerosol_angstrom_fit, linear_stderr, ratio_and_stderr,
                                                     spectral_radiance, triple_atmospheres)
 from atmos_addon.physics.spectrum import DOBSON_UNIT_PER_M2  # noqa: E402
+from tools.bench import write_generated_block  # noqa: E402  (one definition for the report tools)
 
 ELEVATIONS_DEG = (60.0, 20.0, 5.0, 1.0, -2.0, -4.0, -6.0)
 #: Elevation of the views toward and away from the sun, degrees.
@@ -294,18 +295,6 @@ Reproduce with the command in the generated block (numpy only, no Blender; fixed
 """
 
 
-def write_report(path: Path, generated: str) -> None:
-    """Replace the generated block of ``path`` (or write the header and the block); other text is kept."""
-    text = path.read_text() if path.exists() else ""
-    if BEGIN_MARK in text and END_MARK in text:
-        head, rest = text.split(BEGIN_MARK, 1)
-        text = head + generated + rest.split(END_MARK, 1)[1]
-    else:
-        text = (text.rstrip() + "\n\n" if text else HEADER) + generated + "\n"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
-
-
 def rgb_versus_spectral(elevations: tuple[float, ...]) -> str:
     """Zenith B/R of single scattering (quadrature, no ozone, clear preset): 3-wavelength RGB against spectral."""
     clear = presets.load("clear").atmosphere
@@ -354,7 +343,7 @@ def main(argv: list[str] | None = None) -> int:
         results, seconds = measure(args.paths, args.seed, elevations, map)
     generated = markdown(results, seconds, elevations, command, args.paths, args.seed, args.workers)
     if args.output:
-        write_report(args.output, generated)
+        write_generated_block(args.output, generated, BEGIN_MARK, END_MARK, HEADER)
     else:
         print(generated)
     return 0

@@ -10,13 +10,12 @@ Run: ``./run python -m atmos_addon.sample_scenes.mars --output mars.blend`` (wit
 
 from __future__ import annotations
 
-import argparse
 import math
-from pathlib import Path
 
 import bpy
 import numpy as np
 
+from . import write_scene
 from .valley import add_camera, grid_object, material, new_scene, place_sun
 
 CAMERA_HEIGHT_M = 1.7
@@ -88,14 +87,5 @@ def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
     return scene
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description="Build the Atmos Mars sample scene.")
-    parser.add_argument("--output", type=Path, required=True, help="the .blend file to write")
-    args = parser.parse_args()
-    build()
-    bpy.ops.wm.save_as_mainfile(filepath=str(args.output.resolve()))
-    print(f"wrote {args.output}")
-
-
 if __name__ == "__main__":
-    main()
+    write_scene(build, "Build the Atmos Mars sample scene.")

@@ -10,12 +10,12 @@ Run: ``./run python -m atmos_addon.sample_scenes.valley --output valley.blend`` 
 
 from __future__ import annotations
 
-import argparse
 import math
-from pathlib import Path
 
 import bpy
 import numpy as np
+
+from . import write_scene
 
 #: (distance from the camera in m, ridge height in m, colour) for each ridge, near to far.
 RIDGES = (
@@ -180,14 +180,5 @@ def _convex_hull_mesh(mesh: bpy.types.Mesh, points: np.ndarray) -> None:
     bm.free()
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description="Build the Atmos valley sample scene.")
-    parser.add_argument("--output", type=Path, required=True, help="the .blend file to write")
-    args = parser.parse_args()
-    build()
-    bpy.ops.wm.save_as_mainfile(filepath=str(args.output.resolve()))
-    print(f"wrote {args.output}")
-
-
 if __name__ == "__main__":
-    main()
+    write_scene(build, "Build the Atmos valley sample scene.")
