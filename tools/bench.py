@@ -50,6 +50,15 @@ def write_generated_block(path: Path, generated: str, begin_mark: str, end_mark:
     path.write_text(text)
 
 
+def publish_generated_block(path: Path | None, generated: str, begin_mark: str, end_mark: str, header: str) -> None:
+    """:func:`write_generated_block` into the report ``path``, or print the block when no report is given (the
+    report tools' ``--output``)."""
+    if path is None:
+        print(generated)
+    else:
+        write_generated_block(path, generated, begin_mark, end_mark, header)
+
+
 def cpu_model() -> str:
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():

@@ -1,12 +1,15 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Accuracy bench of the aerial-perspective quality levels against brute-force single scattering.
+"""Accuracy bench of the aerial-perspective quality levels against brute-force single scattering, and against
+the complete reference (every scattering order, Monte Carlo).
 
-    .venv/bpy-5.0.1/bin/python tools/bench_accuracy.py [--no-write]
+    .venv/bpy-5.2.3/bin/python tools/bench_accuracy.py [--no-write] [--paths N]
 
 Prints a markdown table (level x case: max / mean relative error of F_ex, L_in and the pixel, see
 :mod:`atmos_addon.physics.quality` for the error measure), writes ``docs/quality.md`` and, if matplotlib
 is importable, ``docs/quality_tradeoff.png`` (error against node count). Also prints the
-``MEASURED_PIXEL_ERROR`` table that the Auto choice reads. Takes about 15 s.
+``MEASURED_PIXEL_ERROR`` table that the Auto choice reads; then every level against the complete reference
+(:func:`atmos_addon.physics.quality.complete_reference`), with the pixel's luminance and chromaticity errors,
+into the second generated block of ``docs/quality.md``. Takes about 15 s plus 20 s per 1000 paths.
 """
 
 from __future__ import annotations
@@ -19,11 +22,13 @@ from pathlib import Path
 REPO_ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO_ROOT))
 
-from atmos_addon.physics.quality import (BENCH_CASES, Level, errors,  # noqa: E402
-                                         reference)
+from atmos_addon.physics.quality import (BENCH_CASES, COMPLETE_ONLY_CASES,  # noqa: E402
+                                         COMPLETE_REFERENCE_GROUND_ALBEDO,
+                                         COMPLETE_REFERENCE_PATHS, COMPLETE_REFERENCE_SEED, Level,
+                                         complete_reference, errors, errors_of, evaluate, precise_tile, reference)
 from atmos_addon.nodes.aerial_perspective import NODE_COUNTS  # noqa: E402
 
-COMMAND = ".venv/bpy-5.0.1/bin/python tools/bench_accuracy.py"
+COMMAND = ".venv/bpy-5.2.3/bin/python tools/bench_accuracy.py"
 
 #: Node counts of the aerial group per level (Rayleigh + Mie + absorption), as built (a test checks NODE_COUNTS).
 LEVEL_NODES = {"fast": NODE_COUNTS["rayleigh+mie+abs"], "balanced": NODE_COUNTS["rayleigh+mie+abs+balanced"],
@@ -81,7 +86,6 @@ def multiple_scattering_table() -> str:
     import numpy as np
 
     from atmos_addon.physics.precise import evaluate as evaluate_precise
-    from atmos_addon.physics.quality import precise_tile
 
     lines = ["| case | L_in added, mean % | L_in added, max % | pixel added, max % | bake s |", "|---|---:|---:|---:|---:|"]
     for case in BENCH_CASES:
@@ -97,6 +101,35 @@ def multiple_scattering_table() -> str:
         lines.append(f"| {case.name} | {100 * added.mean():.0f} | {100 * added.max():.0f} | {100 * pixel.max():.0f} "
                      f"| {seconds:.2f} |")
     return "\n".join(lines)
+
+
+def _xy(distance: float) -> str:
+    return "black" if distance != distance else f"{distance:.4f}"  # NaN: a black pixel has no chromaticity
+
+
+def complete_table(paths: int) -> tuple[str, float]:
+    """Every level (Precise also with its multiple-scattering term) against the complete reference, per case:
+    max pixel error (%, over rays and channels), max luminance error (%) and max CIE xy distance; the
+    reference's largest standard error (% of L_in). Returns the table and the seconds taken."""
+    import numpy as np
+
+    from atmos_addon.physics.precise import evaluate as evaluate_precise
+
+    start = time.perf_counter()
+    lines = ["| case | level | pixel max % | luminance max % | xy max | reference noise, max % of L_in |",
+             "|---|---|---:|---:|---:|---:|"]
+    for case in BENCH_CASES + COMPLETE_ONLY_CASES:
+        f_ex, l_in, error = complete_reference(case, paths, COMPLETE_REFERENCE_SEED)
+        noise = 100.0 * float(np.max(error / np.maximum(l_in, 1e-30)))
+        levels = [(level.value, evaluate(level, case)) for level in (Level.FAST, Level.BALANCED, Level.PRECISE)]
+        levels.append(("precise + multiple scattering",
+                       evaluate_precise(precise_tile(case, True), case.view_dirs, case.sun_dir, case.distances_m,
+                                        case.atmosphere, np.float64)))
+        for label, value in levels:
+            err = errors_of(case, value, (f_ex, l_in))
+            lines.append(f"| {case.name} | {label} | {_pct(err['pixel_max'].max())} | "
+                         f"{_pct(float(err['luminance_max']))} | {_xy(float(err['xy_max']))} | {noise:.1f} |")
+    return "\n".join(lines), time.perf_counter() - start
 
 
 def write_plot(results, path: Path) -> bool:
@@ -129,6 +162,8 @@ def write_plot(results, path: Path) -> bool:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--no-write", action="store_true", help="print only; do not write docs/")
+    parser.add_argument("--paths", type=int, default=COMPLETE_REFERENCE_PATHS,
+                        help="Monte Carlo paths per ray and channel of the complete reference")
     args = parser.parse_args(argv)
     results, seconds = measure()
     table = markdown_table(results)
@@ -156,6 +191,25 @@ def main(argv=None) -> int:
             text = text[:text.index(start)] + block + text[text.index(end) + len(end):]
         else:
             text = text + "\n" + block + "\n"
+        (docs / "quality.md").write_text(text)
+    complete, complete_seconds = complete_table(args.paths)
+    print("\nAgainst the complete reference (every scattering order):\n" + complete)
+    if not args.no_write:
+        albedo = ", ".join(f"{a:g}" for a in COMPLETE_REFERENCE_GROUND_ALBEDO)
+        block = (f"Generated by `{COMMAND} --paths {args.paths}` ({complete_seconds:.0f} s for this table). The "
+                 f"complete reference: every scattering order by Monte Carlo (physics/multiple_scattering_reference."
+                 f"inscattering_mc, {args.paths} paths per ray and channel, seed {COMPLETE_REFERENCE_SEED}), the "
+                 f"spherical planet, a Lambertian ground of albedo ({albedo}) as Precise's multiple-scattering table "
+                 f"assumes, three channels, no ozone (ozone and the spectrum: docs/reference_sky.md). Pixel: "
+                 f"L0 F_ex + L_in of the albedo-0.3 surface, errors as above; luminance: Rec.709 Y of the pixel; xy: "
+                 f"CIE 1931 chromaticity distance ('black': the level renders black there). The last column is "
+                 f"the reference's own noise.\n\n{complete}\n")
+        text = (docs / "quality.md").read_text()
+        start, end = "<!-- complete:begin -->", "<!-- complete:end -->"
+        if start in text and end in text:
+            text = text[:text.index(start) + len(start)] + "\n" + block + text[text.index(end):]
+        else:
+            text = text + f"\n{start}\n{block}{end}\n"
         (docs / "quality.md").write_text(text)
     return 0
 

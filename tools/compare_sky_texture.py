@@ -37,6 +37,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -137,8 +138,9 @@ def measure_precise(multiple_scattering: bool) -> dict[str, dict]:
 
 # --- Blender (bpy) --------------------------------------------------------------------------------------------
 
-def _setup_scene(bpy):
-    """Empty scene, Cycles on the CPU, a world with a Sky Texture, one tiny perspective camera."""
+def setup_scene(bpy, name: str = "SkyCompare"):
+    """Empty scene, Cycles on the CPU with one thread, a world with a Sky Texture, one tiny perspective camera;
+    (scene, Sky Texture node, camera). Shared with ``tools/compare_hosek_wilkie.py``."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
@@ -154,9 +156,11 @@ def _setup_scene(bpy):
     scene.render.use_persistent_data = True  # keep the Sky Texture's table while only the camera moves
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
-    world = bpy.data.worlds.new("SkyCompare")
-    if hasattr(world, "use_nodes"):
-        world.use_nodes = True
+    world = bpy.data.worlds.new(name)
+    with warnings.catch_warnings():  # Blender 4.5 needs it set; 5.x warns that it goes away in 6.0
+        warnings.simplefilter("ignore", DeprecationWarning)
+        if hasattr(world, "use_nodes"):
+            world.use_nodes = True
     scene.world = world
     nodes, links = world.node_tree.nodes, world.node_tree.links
     nodes.clear()
@@ -165,11 +169,11 @@ def _setup_scene(bpy):
     output = nodes.new("ShaderNodeOutputWorld")
     links.new(sky.outputs["Color"], background.inputs["Color"])
     links.new(background.outputs["Background"], output.inputs["Surface"])
-    camera_data = bpy.data.cameras.new("SkyCompare")
+    camera_data = bpy.data.cameras.new(name)
     camera_data.type = "PERSP"
     camera_data.sensor_fit = "HORIZONTAL"
     camera_data.angle = math.radians(FIELD_OF_VIEW_DEG)
-    camera = bpy.data.objects.new("SkyCompare", camera_data)
+    camera = bpy.data.objects.new(name, camera_data)
     scene.collection.objects.link(camera)
     scene.camera = camera
     return scene, sky, camera
@@ -192,7 +196,7 @@ def _configure_sky(sky, model: str, sun_elevation_deg: float, ozone_density: flo
         sky.sun_intensity = 1.0
 
 
-def _render_direction(bpy, scene, camera, elevation_deg: float, azimuth_deg: float, path: Path) -> np.ndarray:
+def render_direction(bpy, scene, camera, elevation_deg: float, azimuth_deg: float, path: Path) -> np.ndarray:
     """Mean linear RGB of a tiny render looking at (elevation, azimuth)."""
     # The camera looks down its -Z; X by 90 deg + e tilts it to elevation e toward +y, Z turns it to azimuth.
     camera.rotation_euler = (math.radians(90.0 + elevation_deg), 0.0, math.radians(azimuth_deg - 90.0))
@@ -208,7 +212,7 @@ def _sun_azimuth_deg(bpy, scene, sky, camera, model: str, workdir: Path) -> floa
     """Azimuth (deg, from +x toward +y) of the Sky Texture's sun at rotation 0, found by probing a low sun."""
     _configure_sky(sky, model, 5.0)
     azimuths = np.arange(0.0, 360.0, 45.0)
-    luminance = [float(_render_direction(bpy, scene, camera, 5.0, a, workdir / f"probe{int(a)}.exr")
+    luminance = [float(render_direction(bpy, scene, camera, 5.0, a, workdir / f"probe{int(a)}.exr")
                        @ LUMINANCE_WEIGHTS) for a in azimuths]
     return float(azimuths[int(np.argmax(luminance))])
 
@@ -222,7 +226,7 @@ def measure_blender() -> dict:
     result = {"blender": bpy.app.version_string, "models": {}}
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp)
-        scene, sky, camera = _setup_scene(bpy)
+        scene, sky, camera = setup_scene(bpy)
         variants = [(m, 1.0) for m in models] + [(m, 0.0) for m in models if m in WITHOUT_OZONE]
         for model, ozone in variants:
             start = time.perf_counter()
@@ -230,7 +234,7 @@ def measure_blender() -> dict:
             per_elevation = {}
             for sun_elevation in SUN_ELEVATIONS_DEG:
                 _configure_sky(sky, model, sun_elevation, ozone)
-                rgb = {name: _render_direction(bpy, scene, camera, *direction, workdir / f"{name}.exr")
+                rgb = {name: render_direction(bpy, scene, camera, *direction, workdir / f"{name}.exr")
                        for name, direction in view_directions(sun_azimuth).items()}
                 per_elevation[str(sun_elevation)] = {"rgb": {k: v.tolist() for k, v in rgb.items()},
                                                      "metrics": metrics(rgb)}
@@ -278,7 +282,20 @@ def markdown_tables(ours: dict, ours_approx: dict, brute_force: dict, blender_ru
     return "\n".join(lines)
 
 
-def _relative(path: str) -> str:
+def measure_in_each_blender(measure, script: Path, interpreters: list[str]) -> list[dict]:
+    """``measure()`` with this interpreter's bpy, then ``script --measure-json`` with each other interpreter (the
+    tools' ``--also``): one result per Blender, this one first. Shared with ``tools/compare_hosek_wilkie.py``."""
+    runs = [measure()]
+    for python in interpreters:
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "measure.json"
+            subprocess.run([python, str(Path(script).resolve()), "--measure-json", str(out)], check=True,
+                           stdout=subprocess.DEVNULL)
+            runs.append(json.loads(out.read_text()))
+    return runs
+
+
+def repo_relative(path: str) -> str:
     """``path`` relative to the repository when inside it (for the command line quoted in the report)."""
     try:
         return str(Path(path).absolute().relative_to(REPO_ROOT))
@@ -297,14 +314,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.measure_json:
         args.measure_json.write_text(json.dumps(measure_blender(), indent=1))
         return 0
-    runs = [measure_blender()]
-    for python in args.also:
-        with tempfile.TemporaryDirectory() as tmp:
-            out = Path(tmp) / "measure.json"
-            subprocess.run([python, str(Path(__file__).resolve()), "--measure-json", str(out)], check=True,
-                           stdout=subprocess.DEVNULL)
-            runs.append(json.loads(out.read_text()))
-    command = f"{_relative(sys.executable)} tools/compare_sky_texture.py " + " ".join(
+    runs = measure_in_each_blender(measure_blender, Path(__file__), args.also)
+    command = f"{repo_relative(sys.executable)} tools/compare_sky_texture.py " + " ".join(
         [f"--also {p}" for p in args.also] + ([f"--output {args.output}"] if args.output else []))
     generated = markdown_tables(measure_atmos("accurate"), measure_atmos("approx"), measure_reference(), runs,
                                 command.strip(), (measure_precise(False), measure_precise(True)))

@@ -53,7 +53,7 @@ from atmos_addon.physics.spectral_reference import (RGB_WEIGHTS, TRIPLE_INDICES,
                                                     aerosol_angstrom_fit, linear_stderr, ratio_and_stderr,
                                                     spectral_radiance, triple_atmospheres)
 from atmos_addon.physics.spectrum import DOBSON_UNIT_PER_M2  # noqa: E402
-from tools.bench import write_generated_block  # noqa: E402  (one definition for the report tools)
+from tools.bench import publish_generated_block  # noqa: E402  (one definition for the report tools)
 
 ELEVATIONS_DEG = (60.0, 20.0, 5.0, 1.0, -2.0, -4.0, -6.0)
 #: Elevation of the views toward and away from the sun, degrees.
@@ -342,10 +342,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         results, seconds = measure(args.paths, args.seed, elevations, map)
     generated = markdown(results, seconds, elevations, command, args.paths, args.seed, args.workers)
-    if args.output:
-        write_generated_block(args.output, generated, BEGIN_MARK, END_MARK, HEADER)
-    else:
-        print(generated)
+    publish_generated_block(args.output, generated, BEGIN_MARK, END_MARK, HEADER)
     return 0
 
 

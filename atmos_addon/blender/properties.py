@@ -269,9 +269,11 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
     haze_visibility: FloatProperty(
         name="Haze",
         description=(
-            "Meteorological visibility: the distance at which a dark object fades to 2 % contrast against the "
-            "horizon, V = 3.912 / extinction at 550 nm (Koschmieder). Shorter is hazier. Writes grey Mie "
-            "scattering (and matching absorption) on top of the air's own Rayleigh extinction"
+            "Meteorological visibility at the ground, V = 3.912 / extinction at 550 nm (Koschmieder), as a "
+            "visibility sensor reports it. In a uniform haze a black object at V keeps 2 % contrast against the "
+            "horizon; real haze thins with height, so the horizon behind it is dimmer and it keeps more (clear "
+            "preset, 70 km: 4.6 %, docs/visibility.md). Shorter is hazier. Writes grey Mie scattering (and "
+            "matching absorption) on top of the air's own Rayleigh extinction"
         ),
         min=1.0,
         soft_min=100.0,

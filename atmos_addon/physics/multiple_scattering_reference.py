@@ -206,12 +206,17 @@ def trace_paths(origins_m: ArrayLike, directions: ArrayLike, channel: ArrayLike,
                 atm: Atmosphere, *, sun_irradiance_top: ArrayLike | None = None, ground_albedo: ArrayLike = 0.0,
                 space_radiance: ArrayLike = 0.0, max_order: int | None = None,
                 extra_absorption: ExtraAbsorption | None = None, seed: int | np.random.Generator = 0,
-                n_nodes: int = 97) -> np.ndarray:
+                n_nodes: int = 97, target_distance_m: ArrayLike | None = None) -> np.ndarray:
     """One radiance sample per path (n,): light reaching ``origins_m`` (camera-style points, z up, planet
     centre at (0, 0, -R)) against each ``directions`` row, in colour ``channel`` (0, 1, 2) of each path.
 
     The estimator of the module docstring; ``space_radiance`` (per channel) enters isotropically at the top of
     the atmosphere, ``ground_albedo`` (per channel) is Lambertian, ``max_order`` bounds the number of vertices.
+    ``target_distance_m`` (per path, m; ``inf`` for none) puts a black surface that far along the first
+    segment: the light scattered toward the origin in front of it, L_in of the aerial perspective. The first
+    segment then ends there and is forced to collide like a segment leaving through the top (weight 1 - T,
+    nothing added for what lies behind); later segments do not see the surface (a target small against the
+    light field, the assumption of every aerial-perspective model).
     """
     rng = np.random.default_rng(seed)
     direction = _unit_rows(directions, "directions")
@@ -235,6 +240,10 @@ def trace_paths(origins_m: ArrayLike, directions: ArrayLike, channel: ArrayLike,
     if np.any(start_altitude < -1e-6) or np.any(start_altitude > atm.atmosphere_height * (1.0 + 1e-9)):
         raise ValueError("the paths must start inside the atmosphere (0 <= altitude <= atm.atmosphere_height)")
     order_limit = MAX_SEGMENTS if max_order is None else int(max_order)
+    target = np.full(direction.shape[0], np.inf) if target_distance_m is None else np.broadcast_to(
+        np.asarray(target_distance_m, dtype=np.float64), direction.shape[:1])
+    if np.any(np.isnan(target)) or np.any(target < 0.0):
+        raise ValueError("target_distance_m must be >= 0 (inf for no target)")
     total = np.zeros(direction.shape[0])
     path = np.arange(direction.shape[0])
     weight = np.ones(direction.shape[0])
@@ -243,10 +252,17 @@ def trace_paths(origins_m: ArrayLike, directions: ArrayLike, channel: ArrayLike,
         if path.size == 0:
             break
         radius, mu, length, ground = _segment_length(position, direction, atm)
+        blocked = np.zeros(path.size, dtype=bool)
+        if order == 1:
+            # A target on the ground or the top sphere (to rounding: a bench ray's distance to the ground) is the
+            # black surface, not the ground that would reflect light.
+            blocked = target < length * (1.0 + 1e-9) + 1e-6
+            length, ground = np.where(blocked, target, length), ground & ~blocked
         xi = rng.random(path.size)
         tau, distance = _march(radius, mu, length, channel, atm, extra_absorption, n_nodes, xi, ~ground)
-        # Leaving through the top: add the space light and force a collision (weight 1 - T).
-        total[path] += np.where(ground, 0.0, weight * np.exp(-tau) * space[channel])  # path ids are unique
+        # Leaving through the top: add the space light and force a collision (weight 1 - T); the same before a
+        # black target, which adds nothing.
+        total[path] += np.where(ground | blocked, 0.0, weight * np.exp(-tau) * space[channel])  # ids are unique
         weight = np.where(ground, weight, -weight * np.expm1(-tau))
         collide = ~ground | (-np.log1p(-xi) < tau)
         distance = np.where(collide, distance, length)
@@ -304,16 +320,52 @@ def sky_radiance_mc(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, *,
     W m^-2 (default ``atm.sun_irradiance_top``). The sun's disk itself is not included. ``paths`` per view
     direction and channel; ``extra_absorption(altitude_m)`` -> (..., 3) 1/m adds a non-scattering absorber.
     """
+    return _per_view(view_dir, None, sun_dir, atm, camera_altitude_m=camera_altitude_m,
+                     sun_irradiance_top=sun_irradiance_top, ground_albedo=ground_albedo,
+                     space_radiance=space_radiance, max_order=max_order, paths=paths, seed=seed,
+                     extra_absorption=extra_absorption, n_nodes=n_nodes)
+
+
+def inscattering_mc(view_dir: ArrayLike, distance_m: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, *,
+                    camera_altitude_m: float = 0.0, sun_irradiance_top: ArrayLike | None = None,
+                    ground_albedo: ArrayLike = 0.0, max_order: int | None = None, paths: int = 20_000,
+                    seed: int = 0, extra_absorption: ExtraAbsorption | None = None, n_nodes: int = 97
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """L_in of the aerial perspective by every scattering order: the light scattered toward the camera in front
+    of a black surface ``distance_m`` away along each view (scalar or (k,), m), and its standard error.
+
+    The complete counterpart of the L_in of :func:`~atmos_addon.physics.reference.single_scattering` (equal to
+    it with ``max_order=1``) and of every quality level; the surface's own light L0 F_ex is the caller's (F_ex
+    is deterministic: :func:`~atmos_addon.physics.reference.single_scattering`). A distance beyond the top of
+    the atmosphere or the ground gives :func:`sky_radiance_mc` with no space light, sample for sample. Other
+    arguments and the returned shapes as :func:`sky_radiance_mc`.
+    """
+    return _per_view(view_dir, distance_m, sun_dir, atm, camera_altitude_m=camera_altitude_m,
+                     sun_irradiance_top=sun_irradiance_top, ground_albedo=ground_albedo, space_radiance=0.0,
+                     max_order=max_order, paths=paths, seed=seed, extra_absorption=extra_absorption,
+                     n_nodes=n_nodes)
+
+
+def _per_view(view_dir: ArrayLike, distance_m: ArrayLike | None, sun_dir: ArrayLike, atm: Atmosphere, *,
+              camera_altitude_m: float, sun_irradiance_top: ArrayLike | None, ground_albedo: ArrayLike,
+              space_radiance: ArrayLike, max_order: int | None, paths: int, seed: int,
+              extra_absorption: ExtraAbsorption | None, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard error per view and channel of ``paths`` samples each (the two functions above)."""
     views = _unit_rows(view_dir, "view_dir")
     if int(paths) < 2:
         raise ValueError(f"paths must be >= 2; got {paths!r}")
     n = int(paths)
     direction = np.repeat(views, 3 * n, axis=0)
     channel = np.tile(np.repeat(np.arange(3), n), views.shape[0])
+    target = None
+    if distance_m is not None:
+        distances = np.broadcast_to(np.asarray(distance_m, dtype=np.float64), views.shape[:1])
+        target = np.repeat(distances, 3 * n)
     origin = np.array([0.0, 0.0, float(camera_altitude_m)])
     samples = trace_paths(origin, direction, channel, sun_dir, atm, sun_irradiance_top=sun_irradiance_top,
                           ground_albedo=ground_albedo, space_radiance=space_radiance, max_order=max_order,
-                          extra_absorption=extra_absorption, seed=seed, n_nodes=n_nodes).reshape(-1, 3, n)
+                          extra_absorption=extra_absorption, seed=seed, n_nodes=n_nodes,
+                          target_distance_m=target).reshape(-1, 3, n)
     radiance = samples.mean(axis=-1)
     error = samples.std(axis=-1, ddof=1) / np.sqrt(n)
     if np.ndim(view_dir) == 1:

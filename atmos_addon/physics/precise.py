@@ -200,7 +200,13 @@ class MultipleScatteringTable:
     At each altitude h_j = top (j / (n - 1))^2 and sun zenith cosine mu_s (linear in -1..1), rays in ``n_dirs``
     directions are marched in ``n_steps`` steps to the ground or the top:
         L_2  = (1 / 4 pi) sum_dirs [integral T sigma_s T_sun / (4 pi) dt + T_ground T_sun mu_s,g albedo / pi] dOmega
-        f_ms = (1 / 4 pi) sum_dirs integral T sigma_s dt dOmega,       Psi_ms = L_2 / (1 - f_ms).
+        f_ms = (1 / 4 pi) sum_dirs [integral T sigma_s dt + T_ground albedo] dOmega,   Psi_ms = L_2 / (1 - f_ms).
+
+    The ground term of f_ms extends Hillaire's: under the same assumption (every point bathed in the same
+    isotropic radiance), unit radiance over the ground gives it irradiance pi and a Lambertian radiance albedo
+    back, so light bounces between the air and the ground too. Without it the table missed the skylight the
+    ground returns: against the complete reference (``tools/bench_accuracy.py``), L_in of the ground vista fell
+    from 90 % of the reference at a black ground to 88 % at albedo 0.3; with it, 90 % and 98 %.
     """
 
     def __init__(self, atm: Atmosphere, sun_table: SunTransmittanceTable, ground_albedo=DEFAULT_GROUND_ALBEDO,
@@ -232,7 +238,8 @@ class MultipleScatteringTable:
             tau_step = (atm.rayleigh_scattering * n_r[..., None] + atm.mie_extinction * n_m[..., None]) * dt
             tau_through = np.cumsum(tau_step, axis=1)
             transmittance = np.exp(-(tau_through - 0.5 * tau_step))                 # to each step's midpoint
-            f_ms = np.mean(np.sum(transmittance * sigma_s * dt, axis=1), axis=0)    # (3,)
+            f_ms = np.mean(np.sum(transmittance * sigma_s * dt, axis=1)
+                           + np.where(hits[:, None], np.exp(-tau_through[:, -1]) * albedo, 0.0), axis=0)    # (3,)
             # sun zenith cosine at each sample, for every sun position: (x . sun) / |x|, x = (0, 0, r0) + t dir
             mu_point = (r0 * mu_s[:, None, None] + t[None] * along[..., None]) / radius[None]       # (M, D, S)
             t_sun = sun_table(np.broadcast_to(radius, mu_point.shape), mu_point)    # (M, D, S, 3)

@@ -294,6 +294,30 @@ def test_labels_fit_the_default_width_and_channels_are_labelled(user_presets):
     assert blf.dimensions(0, "Mie Anisotropy")[0] > ui_panel.LABEL_WIDTH_LIMIT_PX   # the test measures what was cut
 
 
+def test_the_world_surface_slot_reads_plainly(user_presets):
+    """Issue 29: the World tab's Surface slot showed "Atmos Sky (camera rays: analytic; other rays: table)" and
+    "Atmos Sky Ray Switch | Is Camera Ray". Every node Atmos adds to the world has a short label without
+    implementation words, under 180 px (the slot's button at the default width), in both engines."""
+    import blf
+
+    from atmos_addon import api
+    from atmos_addon.blender.apply import world as world_applier
+
+    blf.size(0, 11)
+    for engine in ("CYCLES", EEVEE_ENGINE):
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        scene = bpy.context.scene
+        scene.render.engine = engine
+        make_camera(scene)
+        add_sun(scene)
+        api.enable(scene, preset="clear")
+        labels = [node.label for node in scene.world.node_tree.nodes if node.get(world_applier.TAG)]
+        assert labels and (engine != "CYCLES" or "Atmos Sky and Lighting" in labels), labels
+        for label in labels:
+            assert blf.dimensions(0, label)[0] <= 180.0, label
+            assert not any(word in label.lower() for word in ("analytic", "table", "switch", "camera rays")), label
+
+
 def test_sub_panels_grey_out_while_the_effect_is_off(user_presets):
     """Issue 29: with the effect off every sub-panel (and the Sky box) greys its contents, as Blender does under a
     header checkbox; with it on they are active."""

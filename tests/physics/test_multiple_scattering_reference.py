@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from atmos_addon.physics import Atmosphere, phase_hg, phase_rayleigh
-from atmos_addon.physics.multiple_scattering_reference import (diffuse_flux_mc, sample_hg_cosine,
+from atmos_addon.physics.multiple_scattering_reference import (diffuse_flux_mc, inscattering_mc, sample_hg_cosine,
                                                                sample_rayleigh_cosine, sky_radiance_mc, trace_paths)
 from atmos_addon.physics.reference import _distance_to_top, single_scattering
 
@@ -122,6 +122,60 @@ def test_multiple_scattering_adds_light():
     assert np.all(ratio > 1.02) and np.all(ratio < 3.0), ratio
     assert ratio[0] < ratio[1] < ratio[2], ratio
     assert np.all(error < 0.01 * total)
+
+
+def test_first_order_in_front_of_a_target_is_reference_single_scattering():
+    # L_in in front of a black target: level views 100 m to 50 km (one 5 deg up), toward and away from a 20 deg
+    # sun, and down 45 deg from 2 km to the ground, first order only, against the brute-force integral.
+    atm = Atmosphere()
+    cases = [(0.0, _direction(0.0, 30.0), 100.0), (0.0, _direction(0.0, 180.0), 10_000.0),
+             (0.0, _direction(5.0), 50_000.0), (2000.0, _direction(-45.0, 90.0), 2500.0)]
+    for altitude, view, distance in cases:
+        radiance, error = inscattering_mc(view, distance, SUN_20, atm, camera_altitude_m=altitude, max_order=1,
+                                          paths=4000, seed=7)
+        expected = single_scattering(altitude, view, distance, SUN_20, atm, n_steps=2001, n_sun_steps=257)[1]
+        assert np.all(np.abs(radiance - expected) <= 3.0 * error + 0.01 * expected), (distance, radiance, expected)
+        assert np.all(error < 0.01 * expected)
+
+
+def test_a_target_beyond_the_atmosphere_is_the_sky_sample_for_sample():
+    atm, views = Atmosphere(), [_direction(10.0), _direction(60.0, 90.0)]
+    sky, _ = sky_radiance_mc(views, SUN_20, atm, ground_albedo=0.3, paths=500, seed=8)
+    far, _ = inscattering_mc(views, 1e9, SUN_20, atm, ground_albedo=0.3, paths=500, seed=8)
+    np.testing.assert_array_equal(far, sky)
+    near, _ = inscattering_mc(views, 20_000.0, SUN_20, atm, ground_albedo=0.3, paths=500, seed=8)
+    assert np.all(near < far)
+
+
+def test_inscattering_grows_with_distance_and_every_order_adds_to_it():
+    # A level view away from a 20 deg sun: L_in(1 km) < L_in(10 km) < L_in(50 km) < the horizon sky, and the
+    # higher orders add light at every distance (the same seed replays the first vertex).
+    atm, view = Atmosphere(), _direction(0.0, 180.0)
+    distances = [1000.0, 10_000.0, 50_000.0]
+    every, error = inscattering_mc([view] * 3, distances, SUN_20, atm, paths=3000, seed=9)
+    single, _ = inscattering_mc([view] * 3, distances, SUN_20, atm, max_order=1, paths=3000, seed=9)
+    sky, _ = sky_radiance_mc(view, SUN_20, atm, paths=3000, seed=9)
+    assert np.all(np.diff(every, axis=0) > 0.0) and np.all(every[-1] < sky)
+    assert np.all(every > single + 3.0 * error)
+
+
+def test_a_target_on_the_ground_is_the_black_surface_not_the_ground():
+    # Looking 45 deg down from 2 km with the target at the ground-hit distance (as the bench's drone rays): the
+    # ground's own reflection must not count, whatever its albedo; first order, so only that could differ.
+    atm, view = Atmosphere(), _direction(-45.0)
+    r0 = atm.planet_radius + 2000.0
+    c = view[2]
+    to_ground = -r0 * c - np.sqrt(r0 * r0 * c * c - (r0 * r0 - atm.planet_radius ** 2))
+    dark, _ = inscattering_mc(view, to_ground, SUN_20, atm, camera_altitude_m=2000.0, ground_albedo=0.0,
+                              max_order=1, paths=500, seed=10)
+    white, _ = inscattering_mc(view, to_ground, SUN_20, atm, camera_altitude_m=2000.0, ground_albedo=1.0,
+                               max_order=1, paths=500, seed=10)
+    np.testing.assert_array_equal(white, dark)
+
+
+def test_target_distance_is_checked():
+    with pytest.raises(ValueError, match="target_distance_m"):
+        inscattering_mc(_direction(0.0), -1.0, SUN_20, Atmosphere(), paths=10)
 
 
 @pytest.mark.parametrize("g", [None, 0.76, -0.5, 0.0])

@@ -95,9 +95,9 @@ def _add_lighting_branch(tree: bpy.types.NodeTree, features, background: bpy.typ
     lighting_background.label = "Atmos Sky Lighting Background"
     lighting_background.inputs["Strength"].default_value = 1.0
     switch = tree.nodes.new("ShaderNodeLightPath")
-    switch.label = "Atmos Sky Ray Switch"
+    switch.label = "Atmos Sky Ray Type"
     mix = tree.nodes.new("ShaderNodeMixShader")
-    mix.label = "Atmos Sky (camera rays: analytic; other rays: table)"
+    mix.label = "Atmos Sky and Lighting"  # the Surface slot of the World tab shows it: short, no jargon
     output = tree.nodes.new("ShaderNodeOutputWorld")
     output.label = "Atmos Sky Output (Cycles)"
     output.target = "CYCLES"
