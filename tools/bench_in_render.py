@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Render-time cost of the two modes on the sample valley: effect off, Compositor mode, In-Render mode.
 
-    .venv/bpy-5.0.1/bin/python tools/bench_in_render.py [--resolution 320x180] [--samples 64] [--repeats 3]
+    .venv/bpy-5.2.3/bin/python tools/bench_in_render.py [--resolution 320x180] [--samples 64] [--repeats 3]
 
 Method. The valley (``atmos_addon/sample_scenes/valley.py``) is built once at the given resolution and rendered with Cycles
 on the CPU: ``samples`` samples per pixel with adaptive sampling off (every configuration traces the same

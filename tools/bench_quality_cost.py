@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Render cost of each quality level on the sample valley: effect off, Fast, Balanced; Cycles and Eevee.
 
-    .venv/bpy-5.0.1/bin/python tools/bench_quality_cost.py [--engines cycles,eevee] [--resolution 320x180]
+    .venv/bpy-5.2.3/bin/python tools/bench_quality_cost.py [--engines cycles,eevee] [--resolution 320x180]
         [--samples 64] [--repeats 3] [--decompose] [--only off,fast-per-pixel-aerial-only,...]
 
 Method. The valley (``atmos_addon/sample_scenes/valley.py``) is built once and rendered in Compositor mode (the mode both

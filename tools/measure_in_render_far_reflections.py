@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Reflections that start far from the camera, In-Render mode: where the dome filters are exact, and where not.
 
-    .venv/bpy-5.0.1/bin/python tools/measure_in_render_far_reflections.py [--samples 32]
+    .venv/bpy-5.2.3/bin/python tools/measure_in_render_far_reflections.py [--samples 32]
 
 Part 1, mirrors 50 km away in the top row of the In-Render test camera (32 x 16 px, 20 deg, 4.7 deg up there:
 beyond the aerosols' dome, whose distance R_M(4.7 deg) is 14 km), reflecting a plain world (no Atmos sky) at

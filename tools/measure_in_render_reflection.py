@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Reflection residual of In-Render mode: a mirror lake in the sample valley, In-Render against Compositor mode.
 
-    .venv/bpy-5.0.1/bin/python tools/measure_in_render_reflection.py [--resolution 320x180] [--samples 16]
+    .venv/bpy-5.2.3/bin/python tools/measure_in_render_reflection.py [--resolution 320x180] [--samples 16]
 
 In In-Render mode the world is multiplied by exp(tau_dome(d)) on camera, glossy and transmission rays, the
 optical depth of the camera-centred domes along d. A sky ray reflected at a point p leaves the domes after

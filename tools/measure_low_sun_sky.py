@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Sky luminance at a low sun, per level's sky: the virtual-dome sky (Fast and Balanced) against the Precise table's.
 
-    .venv/bpy-5.0.1/bin/python tools/measure_low_sun_sky.py [--presets overcast,clear] [--elevations 20,10,5,2]
+    .venv/bpy-5.2.3/bin/python tools/measure_low_sun_sky.py [--presets overcast,clear] [--elevations 20,10,5,2]
 
 For each preset and sun elevation, the luminance Y = 0.2126 R + 0.7152 G + 0.0722 B (Rec. 709) of the sky
 radiance (units of the sun lamp's strength per steradian) at the zenith, 10 deg above the horizon away from the

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Silhouette error of the compositor paths and Cycles In-Render against a per-sample reference -> docs/silhouettes.md.
 
-    .venv/bpy-5.0.1/bin/python tools/measure_silhouettes.py [--engines CYCLES,EEVEE] [--no-in-render] [--no-write]
+    .venv/bpy-5.2.3/bin/python tools/measure_silhouettes.py [--engines CYCLES,EEVEE] [--no-in-render] [--no-write]
 
 The compositor applies ``out = Image * (T + max(1 - C, 0)) / k + L / k`` (k = max(C, 1)) to *pixel-filtered*
 Image and AOVs: where a pixel mixes two surfaces (or a surface and the sky), the product of two averages is
