@@ -15,7 +15,11 @@ Bench
     :data:`BENCH_CASES` are the situations a user meets, as data: camera altitude, sun, and sample rays
     (view elevation, azimuth from the sun, distance). :func:`reference` integrates single scattering by brute
     force (:func:`~atmos_addon.physics.reference.single_scattering`, spherical planet, sun transmittance from
-    every point, planet shadow); :func:`errors` compares a level with it.
+    every point, planet shadow); :func:`errors` compares a level with it. :func:`complete_reference` is the
+    same rays with every scattering order (Monte Carlo), which the single-scattering reference leaves out (most
+    of the light: docs/quality.md's second table); :func:`errors_of` compares any (F_ex, L_in) with either, in
+    the pixel's luminance and chromaticity too. :data:`COMPLETE_ONLY_CASES` (blue hour, overcast at a low sun)
+    are measured against it alone.
 
 Error measure
     Relative error with a floor, e = |x - x_ref| / max(|x_ref|, floor), per ray and channel, then the max and
@@ -54,9 +58,9 @@ from .balanced import (CURVATURE_PIECES, PER_PIXEL_PIECES, PER_PIXEL_SUN_AT, ext
                        inscattering_balanced, sun_optical_depths_ground)
 from .multiple_scattering_reference import inscattering_mc
 from .precise import DEFAULT_GROUND_ALBEDO, bake_tile
-from .spectrum import LINEAR_REC709_TO_XYZ, chromaticity_xy
 from .precise import evaluate as evaluate_precise
 from .reference import single_scattering
+from .spectrum import LINEAR_REC709_TO_XYZ, chromaticity_xy
 from .sun import sun_irradiance_ground
 
 
