@@ -302,6 +302,7 @@ def test_a_black_plane_beyond_the_domes_is_the_sky_beside_it(engine):
     scene.objects["Sun"].data.use_shadow = False
     ru.set_engine(scene, engine, width=width, height=height)
     atmos_addon.api.enable(scene, preset="clear", sun_elevation_deg=25.0, sun_azimuth_deg=20.0)
+    scene.world.use_sun_shadow = False   # nor a sun Eevee would extract from the world
     scene.render.use_compositing = True
     plane.hide_render = True
     sky = ru.render_to_array(scene)[..., :3]
