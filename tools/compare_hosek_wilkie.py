@@ -54,7 +54,6 @@ them. Default cost: about 4 min on one core (the reference; the renders take sec
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import tempfile
@@ -84,8 +83,8 @@ from atmos_addon.physics.spectrum import (
     chromaticity_xy,
 )
 from tools.bench import publish_generated_block  # one definition for the report tools
-from tools.compare_sky_texture import (measure_in_each_blender, render_direction, repo_relative, setup_scene,
-                                        unit_vector)
+from tools.compare_sky_texture import (add_blender_options, measure_in_each_blender, render_direction,
+                                        repo_relative, setup_scene, unit_vector, wrote_measure_json)
 
 #: Sun elevations compared, deg (all above the horizon: Hosek-Wilkie is not defined below it).
 SUN_ELEVATIONS_DEG = (60.0, 20.0, 5.0, 1.0)
@@ -372,14 +371,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--paths", type=int, default=DEFAULT_PATHS, help="reference paths per view and wavelength")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--also", action="append", default=[], metavar="PYTHON",
-                        help="another interpreter with bpy (e.g. .venv/bpy-4.5.15/bin/python) to render with too")
-    parser.add_argument("--output", type=Path, help="markdown report to (re)write, e.g. docs/hosek_wilkie.md")
-    parser.add_argument("--measure-json", type=Path, help="only render with this interpreter's bpy; write JSON")
+    add_blender_options(parser, "docs/hosek_wilkie.md")
     args = parser.parse_args(argv)
-
-    if args.measure_json:
-        args.measure_json.write_text(json.dumps(measure_blender(), indent=1))
+    if wrote_measure_json(args, measure_blender):
         return 0
     start = time.perf_counter()
     runs = measure_in_each_blender(measure_blender, Path(__file__), args.also)

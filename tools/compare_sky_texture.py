@@ -303,16 +303,27 @@ def repo_relative(path: str) -> str:
         return path
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def add_blender_options(parser: argparse.ArgumentParser, report: str) -> None:
+    """The options of the tools that render in several Blenders: ``--also``, ``--output`` (e.g. ``report``) and
+    ``--measure-json`` (what ``--also`` runs; see :func:`measure_in_each_blender`)."""
     parser.add_argument("--also", action="append", default=[], metavar="PYTHON",
                         help="another interpreter with bpy (e.g. .venv/bpy-4.5.15/bin/python) to render with too")
-    parser.add_argument("--output", type=Path, help="markdown report to (re)write, e.g. docs/sky_comparison.md")
+    parser.add_argument("--output", type=Path, help=f"markdown report to (re)write, e.g. {report}")
     parser.add_argument("--measure-json", type=Path, help="only render with this interpreter's bpy; write JSON")
-    args = parser.parse_args(argv)
 
+
+def wrote_measure_json(args: argparse.Namespace, measure) -> bool:
+    """With ``--measure-json``, write ``measure()`` there as JSON and return True (the caller is done)."""
     if args.measure_json:
-        args.measure_json.write_text(json.dumps(measure_blender(), indent=1))
+        args.measure_json.write_text(json.dumps(measure(), indent=1))
+    return bool(args.measure_json)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    add_blender_options(parser, "docs/sky_comparison.md")
+    args = parser.parse_args(argv)
+    if wrote_measure_json(args, measure_blender):
         return 0
     runs = measure_in_each_blender(measure_blender, Path(__file__), args.also)
     command = f"{repo_relative(sys.executable)} tools/compare_sky_texture.py " + " ".join(

@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 
 from . import write_scene
-from .valley import add_camera, grid_object, material, new_scene, place_sun
+from .valley import add_camera, grid_object, material, new_scene, place_sun, plain_world
 
 CAMERA_HEIGHT_M = 1.7
 SUN_ELEVATION_DEG = 25.0
@@ -79,11 +79,7 @@ def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
         boulder.data.materials.append(boulder_material)
 
     place_sun(scene, SUN_ELEVATION_DEG, SUN_AZIMUTH_DEG, strength=1.8)
-    world = bpy.data.worlds.new("Mars sky")
-    world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.55, 0.40, 0.28, 1.0)
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.3
-    scene.world = world
+    plain_world(scene, "Mars sky", (0.55, 0.40, 0.28), 0.3)
     return scene
 
 

@@ -144,12 +144,20 @@ def build(resolution: tuple[int, int] = (480, 270)) -> bpy.types.Scene:
 
     place_sun(scene, SUN_ELEVATION_DEG, SUN_AZIMUTH_DEG, strength=4.0)
 
-    world = bpy.data.worlds.new("Valley sky")
-    world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.35, 0.5, 0.8, 1.0)
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
-    scene.world = world
+    plain_world(scene, "Valley sky", (0.35, 0.5, 0.8), 1.0)
     return scene
+
+
+def plain_world(scene: bpy.types.Scene, name: str, colour: tuple[float, float, float],
+                strength: float) -> bpy.types.World:
+    """A new world of one background colour for ``scene``: what the scene shows with the effect off."""
+    world = bpy.data.worlds.new(name)
+    world.use_nodes = True
+    background = world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (*colour, 1.0)
+    background.inputs["Strength"].default_value = strength
+    scene.world = world
+    return world
 
 
 def place_sun(scene: bpy.types.Scene, elevation_deg: float, azimuth_deg: float, strength: float) -> bpy.types.Object:
