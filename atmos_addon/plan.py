@@ -64,7 +64,7 @@ class SceneFacts:
     the file's other enabled scenes render with."""
 
     render_mode: str = "COMPOSITOR"   #: the Mode setting (:data:`MODES`)
-    quality: str = "FAST"             #: the Quality setting (:data:`QUALITIES`)
+    quality: str = "PRECISE"          #: the Quality setting (:data:`QUALITIES`)
     auto_level: str = "fast"          #: Auto's last choice (:data:`LEVELS`)
     engine: str = "CYCLES"            #: ``scene.render.engine``
     osl: bool = False                 #: Cycles' Open Shading Language on
@@ -73,7 +73,7 @@ class SceneFacts:
     sky: bool = True                  #: the Sky setting
     sky_ground: str = "ALBEDO"        #: what the sky shows below the horizon
     sun_lamp: bool = True             #: the Drive Sun Lamp setting
-    multiple_scattering: bool = False  #: the Multiple Scattering setting (Precise level)
+    multiple_scattering: bool = True  #: the Multiple Scattering setting (Precise level)
     other_modes: tuple[str, ...] = ()  #: the modes the file's other enabled scenes render with
     clip_ratio: float | None = None   #: the scene camera's clip end / clip start (None: no camera)
     clip_end_m: float | None = None   #: the scene camera's clip end, m

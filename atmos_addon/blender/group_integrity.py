@@ -19,6 +19,7 @@ reported, and Reset still rebuilds it.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 
 import bpy
@@ -117,6 +118,17 @@ def stamp(tree) -> None:
     tree[FINGERPRINT_KEY] = fingerprint(tree)
     tree[STAMP_KEY] = _build_key(tree)
     invalidate()
+
+
+@contextlib.contextmanager
+def owned_change(tree):
+    """A change Atmos itself makes to a built group (the Precise table's image pointed at by its texture nodes):
+    a group that matched its stamp before is stamped again after, so the change is not reported as an edit; a
+    group the user had edited stays reported."""
+    clean = tree.get(FINGERPRINT_KEY) is not None and tree.get(FINGERPRINT_KEY) == fingerprint(tree)
+    yield tree
+    if clean:
+        stamp(tree)
 
 
 def stamp_new() -> None:

@@ -3,7 +3,8 @@
 
 - :func:`on_depsgraph_update`: the sun lamp moved, the camera moved, keys were edited, materials or objects were
   added, a material was edited, the render engine changed: each the cheap check first, then the orchestrator.
-- :func:`on_load_post`, :func:`on_undo_redo`: the file's data changed under the caches: everything is updated again.
+- :func:`on_load_post`, :func:`on_undo_redo`: the file's data changed under the caches: everything is updated again
+  (after a load, settings saved before a default changed first get their former default: :mod:`.migration`).
 - :func:`follow_render_settings` (message bus): the engine or Cycles' Open Shading Language changed.
 """
 
@@ -12,7 +13,7 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
-from . import group_integrity, orchestrator, sun_bake, sync
+from . import group_integrity, migration, orchestrator, sun_bake, sync
 from .apply import materials, precise_tables
 
 
@@ -40,8 +41,13 @@ def on_depsgraph_update(scene, depsgraph) -> None:
 
 @persistent
 def on_load_post(*_args) -> None:
-    """After a file loads: rebuild stale node groups and re-sync every scene with the effect on; subscribe to the
+    """After a file loads: settings saved before a default changed keep the value they were saved with
+    (:mod:`.migration`); rebuild stale node groups and re-sync every scene with the effect on; subscribe to the
     render settings again (loading a file clears the message bus)."""
+    for scene in bpy.data.scenes:
+        if getattr(scene, "atmos", None) is not None:
+            with orchestrator.held(scene):
+                migration.restore_former_defaults(scene.atmos)
     orchestrator.resync_all()
     _subscribe()
 

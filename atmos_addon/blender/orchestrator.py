@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from . import facts, group_integrity, quality_choice, scene_reading, settings_io, sun_bake, sync
+from . import facts, group_integrity, migration, quality_choice, scene_reading, settings_io, sun_bake, sync
 from ..nodes import registry
 from .apply import compositor, in_render, materials, precise_tables, sun_lamp, world
 
@@ -50,8 +50,8 @@ def is_batched(scene) -> bool:
 
 
 @contextlib.contextmanager
-def batch(scene) -> Iterator[None]:
-    """Write several settings of ``scene`` with one :func:`update` at the end (when the effect is enabled)."""
+def held(scene) -> Iterator[None]:
+    """Hold back the update callbacks of ``scene``'s settings while the caller writes them (it updates, if needed)."""
     if scene.name in _batched:
         yield
         return
@@ -60,6 +60,16 @@ def batch(scene) -> Iterator[None]:
         yield
     finally:
         _batched.discard(scene.name)
+
+
+@contextlib.contextmanager
+def batch(scene) -> Iterator[None]:
+    """Write several settings of ``scene`` with one :func:`update` at the end (when the effect is enabled)."""
+    if scene.name in _batched:
+        yield
+        return
+    with held(scene):
+        yield
     if scene.atmos.enabled:
         update(scene)
 
@@ -224,6 +234,8 @@ def enable_effect(scene) -> Report:
     engine changed), that mode is removed first."""
     if mode_mismatch(scene):
         disable_effect(scene)
+    with held(scene):
+        migration.pin_defaults(scene.atmos)   # a file saved from now on keeps these whatever later defaults are
     _set_enabled(scene, True)
     if precise_tables.uses_precise(scene):
         scene.view_layers[0].update()   # the tables read the camera's matrix: objects moved by a script since

@@ -389,7 +389,7 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
             ("AUTO", "Auto", "Pick the cheapest level whose measured error for this scene (camera and geometry "
                              "heights, view distances, sun) stays under the tolerance; re-evaluated on Refresh"),
         ),
-        default="FAST",
+        default="PRECISE",
         update=_on_quality,
     )
     auto_tolerance: FloatProperty(
@@ -405,10 +405,10 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
     )
     multiple_scattering: BoolProperty(
         name="Multiple Scattering",
-        description="Precise quality: add light scattered more than once (Hillaire 2020, with the ground albedo). "
-                    "Brighter, bluer haze; the sky stays single scattering, so distant mountains can end brighter "
-                    "than the sky behind them",
-        default=False,
+        description="Precise quality: add the light scattered more than once, every order, off the air and the "
+                    "ground (Ground Albedo), to the haze and the sky: most of a clear day's skylight, a blue zenith "
+                    "at a low sun, the blue hour. Within 1-2 % of a Monte Carlo reference by day (docs/quality.md)",
+        default=True,
         update=_on_quality,
     )
     origin_altitude: FloatProperty(

@@ -8,7 +8,8 @@ Levels (cheapest first)
       (:mod:`~atmos_addon.physics.balanced`).
     * PRECISE: single scattering integrated numerically over the spherical planet, baked per frame into a
       camera-centred table the shader samples (:mod:`~atmos_addon.physics.precise`), with an optional
-      multiple-scattering term (Hillaire 2020). The bench measures it with that term off: the reference is
+      multiple-scattering term (every order; :class:`~atmos_addon.physics.precise.MultipleScatteringTable`).
+      The bench measures it with that term off: the reference is
       single scattering; what the term adds is reported separately (``tools/bench_accuracy.py``).
 
 Bench

@@ -261,6 +261,7 @@ def _render_scene(engine: str):
     else:
         scene.eevee.taa_render_samples = 1
     sun = parity_world_camera_sun(scene, WORLD_COLOUR, FOV)
+    scene.atmos.quality = "FAST"   # these renders check the Fast equations (the default is Precise)
     return scene, sun
 
 
@@ -458,6 +459,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     """Compositor <-> Per Pixel swaps the AOVs and the inserted group without touching the materials; disabling
     removes the drivers, the groups and the AOVs."""
     scene = bpy.context.scene
+    scene.atmos.quality = "FAST"   # the driver count below is the Fast level's
     user = user_material()
     mesh_object("Thing", user)
     before = _compositor_state(scene)

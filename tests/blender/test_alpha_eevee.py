@@ -116,6 +116,7 @@ def _scene():
     scene.render.filter_size = 0.0
     scene.eevee.taa_render_samples = 1
     scene.view_settings.view_transform = "Standard"
+    scene.atmos.quality = "FAST"   # the expectations are the Fast equations (the default is Precise)
     world = bpy.data.worlds.new("World")
     scene.world = world
     _use_nodes(world)

@@ -50,3 +50,38 @@ def test_a_file_of_an_earlier_release_upgrades_in_place_and_renders_the_same(rel
         difference = float(np.max(np.abs(image - expected)))
         print(f"\n{release} {scene_name}: max abs difference to the release's render {difference:.2e}")
         assert difference <= 1e-4, scene_name
+
+
+def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_path):
+    # December 2026 the default became Precise with multiple scattering (issue 27); it was Fast without. Blender
+    # writes a setting into the file only once it is set, and one never set reads as today's default, so a scene
+    # saved earlier with the defaults would switch level on opening. Enabling now writes both explicitly; a file
+    # without them (saved before) gets the former defaults back on load (atmos_addon.blender.migration).
+    from atmos_addon import api
+    from atmos_addon.blender import facts
+
+    scene = addon
+    ru.make_camera(scene, rotation_euler=(1.5, 0.0, 0.0))
+    api.enable(scene)
+    settings = scene.atmos
+    assert (settings.quality, settings.multiple_scattering) == ("PRECISE", True)
+    assert settings.is_property_set("quality") and settings.is_property_set("multiple_scattering")
+    assert facts.plan_of(scene).level == "precise" and facts.plan_of(scene).multiple_scattering
+    today = tmp_path / "today.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(today))
+
+    bpy.ops.wm.open_mainfile(filepath=str(today))
+    settings = bpy.context.scene.atmos
+    assert (settings.quality, settings.multiple_scattering) == ("PRECISE", True)
+
+    settings.property_unset("quality")          # as a file saved before the change holds them: never set
+    settings.property_unset("multiple_scattering")
+    older = tmp_path / "older.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(older))
+    bpy.ops.wm.open_mainfile(filepath=str(older))
+    scene = bpy.context.scene
+    assert (scene.atmos.quality, scene.atmos.multiple_scattering) == ("FAST", False)
+    assert facts.plan_of(scene).level == "fast"
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)   # a new scene that never enabled Atmos gets today's defaults
+    assert (bpy.context.scene.atmos.quality, bpy.context.scene.atmos.multiple_scattering) == ("PRECISE", True)

@@ -47,7 +47,8 @@ def test_multiple_scattering_table_is_finite_positive_and_zero_deep_in_the_shado
     sun, ms = atmosphere_tables(EARTH)
     assert isinstance(ms, MultipleScatteringTable) and isinstance(sun, SunTransmittanceTable)
     assert np.all(np.isfinite(ms.psi)) and np.all(ms.psi >= 0.0)
-    assert np.all(ms(0.0, -1.0) == 0.0) and np.all(ms(0.0, 1.0) > 0.0)
+    assert np.all(ms(0.0, 1.0) > 0.0)
+    assert np.all(ms(0.0, -1.0) < 1e-20 * ms(0.0, 1.0))                # midnight: only the linear solve's rounding
     assert np.all(ms(0.0, 1.0) < 1.0 / (4.0 * np.pi))                  # far below the unscattered sun's share
     darker = MultipleScatteringTable(EARTH, sun, ground_albedo=(0.0, 0.0, 0.0))
     assert np.all(darker(0.0, 0.8) < ms(0.0, 0.8))                     # the ground's reflection is in it
@@ -124,9 +125,12 @@ def test_continuous_in_distance_and_across_the_horizon():
     elevation = np.radians(np.linspace(-1.0, 1.0, 2001))
     views = np.stack([np.zeros_like(elevation), np.cos(elevation), np.sin(elevation)], -1)
     f_ex, l_in = evaluate(tile, views, sun, np.full(len(elevation), 30_000.0), EARTH, np.float32)
+    # No jump: no step between rays 0.001 deg apart over 5x the median step plus 0.02 % of the value. (The view-
+    # dependent multiple scattering, linear between its view-zenith nodes, bends the curve where a ray's local view
+    # zenith crosses the horizon node: measured steps up to 1.2e-4 of the value at a 5 deg sun, 16x the median.)
     for value in (f_ex[:, 2].astype(float), l_in[:, 2].astype(float)):
         steps = np.abs(np.diff(value))
-        assert steps.max() <= 5.0 * np.median(steps) + 1e-6
+        assert steps.max() <= 5.0 * np.median(steps) + 2e-4 * np.abs(value).max() + 1e-6
 
 
 def test_shape_and_layout():
@@ -249,9 +253,10 @@ def test_far_surfaces_composite_to_the_precise_sky():
 @pytest.mark.parametrize("albedo", [0.0, 0.3])
 def test_multiple_scattering_follows_the_complete_reference_over_a_dark_and_a_bright_ground(albedo):
     # Ground vista (sun 40 deg, level views 100 m to 30 km): Precise's L_in with its multiple-scattering term
-    # against every order by Monte Carlo, over the same Lambertian ground. Measured mean ratios 0.90 (black
-    # ground) and 0.98 (albedo 0.3); before the table let the skylight bounce off the ground (f_ms's ground
-    # term), 0.88 at albedo 0.3: the brighter ground made it worse.
+    # against every order by Monte Carlo, over the same Lambertian ground. Measured mean ratios 0.982 (black
+    # ground) and 0.998 (albedo 0.3). Hillaire's isotropic table gave 0.90 and 0.98, and 0.88 at albedo 0.3 before
+    # it let the skylight bounce off the ground; lighting the ground with the mean radiance at the ground (which
+    # counts the ground's own light) instead of the sky's irradiance gave 1.044.
     from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import bake_tile
     from atmos_addon.physics.precise import evaluate as evaluate_precise
@@ -266,14 +271,15 @@ def test_multiple_scattering_follows_the_complete_reference_over_a_dark_and_a_br
     _, l_in = evaluate_precise(tile, case.view_dirs, case.sun_dir, case.distances_m, case.atmosphere, np.float64)
     assert np.all(error < 0.03 * reference)
     ratio = float(np.mean(l_in / reference))
-    assert (0.86 if albedo == 0.0 else 0.94) < ratio < 1.03, ratio
+    assert 0.96 < ratio < 1.025, ratio
 
 
 def test_multiple_scattering_at_the_blue_hour_is_not_an_interpolation_artefact():
     # Sun 4 deg below the horizon: Psi_ms falls by orders of magnitude within a few degrees of the terminator. With
     # the sun cosines linear (32 of them) the table interpolated across that fall: L_in 1.53x the complete
-    # reference on average. Crowded at mu_s = 0 it agrees with a 256-sample table: measured 0.81 (the isotropic
-    # assumption's own error remains, docs/quality.md).
+    # reference on average (Hillaire's isotropic table). Crowded at mu_s = 0 it agrees with a 256-sample table:
+    # measured 0.81 then, 1.20 with the orders carried between points and the view-dependent last scattering
+    # (per ray 0.88-1.38x against 24000 paths: the isotropic third and higher orders, docs/quality.md).
     from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import bake_tile
     from atmos_addon.physics.precise import evaluate as evaluate_precise
@@ -286,4 +292,51 @@ def test_multiple_scattering_at_the_blue_hour_is_not_an_interpolation_artefact()
     tile = bake_tile(case.atmosphere, case.camera_altitude_m, math.radians(case.sun_elevation_deg))
     _, l_in = evaluate_precise(tile, case.view_dirs, case.sun_dir, case.distances_m, case.atmosphere, np.float64)
     ratio = float(np.mean(l_in / reference))
-    assert 0.6 < ratio < 1.1, ratio
+    assert 0.8 < ratio < 1.35, ratio
+
+
+def test_an_optically_thin_atmosphere_scatters_once():
+    # Scattering 1000x thinner than Earth's air and a black ground: every order past the first is 1e-3 of it.
+    # Measured: Psi_ms within 0.5 % of the once-scattered J_1 wherever J_1 is over 1e-3 of its largest value.
+    clear = Atmosphere()
+    thin = Atmosphere(rayleigh_scattering=clear.rayleigh_scattering * 1e-3, mie_scattering=3.3e-8,
+                      mie_absorption=3.3e-9)
+    ms = MultipleScatteringTable(thin, SunTransmittanceTable(thin), ground_albedo=(0.0, 0.0, 0.0))
+    lit = ms.single > 1e-3 * ms.single.max()
+    assert np.abs(ms.psi[lit] / ms.single[lit] - 1.0).max() < 0.01
+    assert np.all(ms.psi >= ms.single * (1.0 - 1e-9))                  # higher orders only add light
+
+
+@pytest.mark.parametrize("preset", ["clear", "overcast", "mars"])
+def test_the_view_dependent_multiple_scattering_averages_to_the_mean_radiance(preset):
+    # S_i(v) = integral Phi_i(w . v) L(w) dw; over every view direction v its mean is the mean radiance Psi_ms
+    # (each phase function integrates to 1). Measured within 0.4 % (the discrete phase weights).
+    atm = EARTH if preset == "clear" else load(preset).atmosphere
+    _, ms = atmosphere_tables(atm)
+    rng = np.random.default_rng(0)
+    views = rng.normal(size=(40_000, 3))
+    views /= np.linalg.norm(views, axis=1, keepdims=True)
+    for altitude, cos_sun in ((0.0, 0.8), (0.0, 0.05), (2000.0, -0.05), (20_000.0, 0.3)):
+        s_r, s_m = ms.scattered(np.full(len(views), altitude), np.full(len(views), cos_sun), views[:, 2], views[:, 0])
+        np.testing.assert_allclose(s_r.mean(axis=0), ms(altitude, cos_sun), rtol=0.01)
+        np.testing.assert_allclose(s_m.mean(axis=0), ms(altitude, cos_sun), rtol=0.01)
+
+
+@pytest.mark.parametrize("name, low, high", [("overcast_low_sun", 0.55, 1.1), ("sunset_toward", 0.88, 1.08),
+                                             ("sunset_away", 0.88, 1.08)])
+def test_multiple_scattering_at_a_low_sun_follows_the_complete_reference(name, low, high):
+    # Mean L_in / the Monte Carlo reference (800 paths) at a 1 deg sun. Measured: overcast 0.77, clear toward the
+    # sun 0.95, away 0.95. Hillaire's table (isotropic, the higher orders of a uniformly lit medium) gave about
+    # 0.2 in the overcast (the light that diffuses down from the lit haze above), 0.8 toward and 0.72 away.
+    from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
+    from atmos_addon.physics.precise import evaluate as evaluate_precise
+    from atmos_addon.physics.quality import COMPLETE_REFERENCE_GROUND_ALBEDO, bench_case
+
+    case = bench_case(name)
+    reference, _ = inscattering_mc(case.view_dirs, case.distances_m, case.sun_dir, case.atmosphere,
+                                   camera_altitude_m=case.camera_altitude_m,
+                                   ground_albedo=COMPLETE_REFERENCE_GROUND_ALBEDO, paths=800, seed=14)
+    tile = bake_tile(case.atmosphere, case.camera_altitude_m, math.radians(case.sun_elevation_deg))
+    _, l_in = evaluate_precise(tile, case.view_dirs, case.sun_dir, case.distances_m, case.atmosphere, np.float64)
+    ratio = float(np.mean(l_in / reference))
+    assert low < ratio < high, ratio

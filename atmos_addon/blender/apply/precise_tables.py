@@ -19,7 +19,7 @@ import bpy
 import numpy as np
 
 from ...physics.precise import DEFAULT_SHAPE, Tile, bake_tile
-from .. import facts, scene_reading
+from .. import facts, group_integrity, scene_reading
 from ..debounce import Debounced
 from . import compositor
 
@@ -111,9 +111,12 @@ def _link_image(image: bpy.types.Image) -> None:
     groups = scene_reading.groups()
     for name in (groups.aerial_perspective.GROUP_NAME, groups.sky.SKY_GROUP_NAME, groups.per_pixel.GROUP_NAME):
         group = bpy.data.node_groups.get(name)
-        for node in group.nodes if group is not None else ():
-            if node.bl_idname in ("ShaderNodeTexImage", "CompositorNodeImage") and node.image != image:
-                node.image = image
+        stale = [node for node in (group.nodes if group is not None else ())
+                 if node.bl_idname in ("ShaderNodeTexImage", "CompositorNodeImage") and node.image != image]
+        if stale:
+            with group_integrity.owned_change(group):   # the table is ours to point at: no hand edit
+                for node in stale:
+                    node.image = image
 
 
 def _write_parameters(scene, origin: tuple[int, int], camera_altitude_m: float, tile: Tile, top_m: float,

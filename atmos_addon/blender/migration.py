@@ -1,0 +1,40 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Settings saved by an older Atmos, read as they were written: a file renders as it did when it was saved.
+
+Blender writes a property into a file only once it has been set; one never set reads as the *current* default. So
+when a default changes, a scene saved earlier with the effect on would silently switch to the new default (and, for
+the quality, rebuild its node groups and look different). Two rules keep every file as it was:
+
+- :func:`pin_defaults`: enabling writes the settings whose defaults ever changed explicitly, so a file saved from
+  now on carries the values it renders with, whatever later defaults become.
+- :func:`restore_former_defaults`: after a file loads, a scene with the effect on whose such setting was never set
+  was saved before the default changed, so it gets the default it was saved under (:data:`FORMER_DEFAULTS`).
+"""
+
+from __future__ import annotations
+
+#: Settings whose default changed, with the default a file saved before the change was made with. December 2026
+#: (issue 27): the default became the complete model, Precise with multiple scattering; it was Fast without.
+FORMER_DEFAULTS = {"quality": "FAST", "multiple_scattering": False}
+
+
+def pin_defaults(settings) -> None:
+    """Write the current value of every setting in :data:`FORMER_DEFAULTS` that ``settings`` (a scene's ``atmos``)
+    has not set. The values do not change; the caller holds the update callbacks back
+    (``orchestrator.held``)."""
+    for name in FORMER_DEFAULTS:
+        if not settings.is_property_set(name):
+            setattr(settings, name, getattr(settings, name))
+
+
+def restore_former_defaults(settings) -> list[str]:
+    """For a scene's ``atmos`` settings with the effect on, loaded from a file: the settings of
+    :data:`FORMER_DEFAULTS` it never set get the default it was saved under. Returns their names (none for a file
+    saved by this version, or with the effect off). The caller holds the update callbacks back
+    (``orchestrator.held``) and updates the scene afterwards (the load handler re-syncs every scene)."""
+    if not settings.enabled:
+        return []
+    restored = [name for name in FORMER_DEFAULTS if not settings.is_property_set(name)]
+    for name in restored:
+        setattr(settings, name, FORMER_DEFAULTS[name])
+    return restored
