@@ -133,6 +133,10 @@ def enable(scene, preset=None, *, sun_elevation_deg: float | None = None, sun_az
             _point_sun(scene, sun_elevation_deg, sun_azimuth_deg)
         for key, value in overrides.items():
             setattr(scene.atmos, key, value)
+    # A script's new or moved objects have their world matrices only once the depsgraph evaluates (until then a
+    # sun lamp's reads the identity: a sun at the zenith); the GUI evaluates before every operator, a script not.
+    for view_layer in scene.view_layers:
+        view_layer.update()
     return orchestrator.enable_effect(scene)
 
 

@@ -3,13 +3,15 @@
 
 Atmos owns every group its registry lists (:mod:`atmos_addon.nodes.registry`: the aerial perspective, the sky and
 its lighting table, the compositor's groups, the material group, the In-Render groups). A user who opens one (Tab)
-and changes a value or a link changes the effect in every material or render, usually by accident. Each group carries a fingerprint of what the builder made (``tree["atmos_fingerprint"]``:
+and changes a value or a link changes the effect in every material or render, usually by accident. Each group carries
+a fingerprint of what the builder made (``tree["atmos_fingerprint"]``:
 a hash of the nodes' types, names and settings, the links and the unlinked inputs' values, and the
 interface; node locations, labels and selection are left out, so tidying the layout is no edit),
 stamped right after the builder ran and keyed on the group's version and feature stamps and the
 Blender version. :func:`edited_groups` compares each group with its stamp; the Aerial Perspective
 panel calls it on every draw, so the comparison is cached and recomputed only after a depsgraph update
-that touched a node tree (sync's handlers call :func:`on_depsgraph_update` and :func:`invalidate`). :func:`reset_groups` rebuilds the edited (or all) groups in place: the group
+that touched a node tree (sync's handlers call :func:`on_depsgraph_update` and :func:`invalidate`).
+:func:`reset_groups` rebuilds the edited (or all) groups in place: the group
 data-blocks keep their identity and interface, so materials and worlds keep their group nodes and links.
 
 A group with no stamp for the current build (built by an older Atmos, or by another Blender version,
@@ -83,7 +85,8 @@ def _value(value) -> str:
 
 
 def fingerprint(tree) -> str:
-    """A hash of what the group computes: nodes (type, name, settings, mute), unlinked input values, links, interface."""
+    """A hash of what the group computes: nodes (type, name, settings, mute), unlinked input values, links,
+    interface."""
     parts: list[str] = []
     for item in tree.interface.items_tree:
         if item.item_type == "SOCKET":

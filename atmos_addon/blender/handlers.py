@@ -17,9 +17,15 @@ from . import group_integrity, migration, orchestrator, sun_bake, sync
 from .apply import materials, precise_tables
 
 
+#: True while :func:`_evaluate_enabled_scenes` runs: the depsgraph handler waits for the re-sync that follows.
+_evaluating = False
+
+
 @persistent
 def on_depsgraph_update(scene, depsgraph) -> None:
     """Follow the sun lamp and pick up new materials in scenes with the effect on (cheap checks first)."""
+    if _evaluating:
+        return
     group_integrity.on_depsgraph_update(scene, depsgraph)  # drops the panel's cached edit check (one flag query)
     settings = getattr(scene, "atmos", None)
     if settings is None or not settings.enabled:
@@ -43,13 +49,34 @@ def on_depsgraph_update(scene, depsgraph) -> None:
 def on_load_post(*_args) -> None:
     """After a file loads: settings saved before a default changed keep the value they were saved with
     (:mod:`.migration`); rebuild stale node groups and re-sync every scene with the effect on; subscribe to the
-    render settings again (loading a file clears the message bus)."""
+    render settings again (loading a file clears the message bus).
+
+    A file does not hold the objects' world matrices (Blender keeps them in runtime data): until the depsgraph
+    evaluates, every ``matrix_world`` reads the identity, which made the re-sync write a sun at the zenith into
+    the shader parameters of every file opened (a farm with the add-on rendered the wrong sky). Each scene's
+    view layers are evaluated first."""
     for scene in bpy.data.scenes:
         if getattr(scene, "atmos", None) is not None:
             with orchestrator.held(scene):
                 migration.restore_former_defaults(scene.atmos)
+    _evaluate_enabled_scenes()
     orchestrator.resync_all()
     _subscribe()
+
+
+def _evaluate_enabled_scenes() -> None:
+    """Evaluate the view layers of every scene with the effect on, so that its objects' ``matrix_world`` is
+    current (after a load or a memfile undo it is not until the depsgraph runs), the depsgraph handler held back
+    (the caller re-syncs)."""
+    global _evaluating
+    _evaluating = True
+    try:
+        for scene in bpy.data.scenes:
+            if getattr(scene, "atmos", None) is not None and scene.atmos.enabled:
+                for view_layer in scene.view_layers:
+                    view_layer.update()
+    finally:
+        _evaluating = False
 
 
 @persistent
@@ -64,6 +91,7 @@ def on_undo_redo(*_args) -> None:
       before the re-sync compares bake keys.
     """
     precise_tables.free_buffers()
+    _evaluate_enabled_scenes()
     orchestrator.resync_all()
 
 

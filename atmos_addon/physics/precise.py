@@ -30,16 +30,17 @@ column divided by that cell's Phi_R(nu) (as Bruneton 2017 stores his higher orde
 Geometry (spherical planet, radius R): the camera at radius r_c = R + h_c; a point at distance t has radius
 r(t) = sqrt(r_c^2 + 2 r_c t sin e + t^2) and sun zenith cosine mu_s(t) = (r_c sin e_s + t nu) / r(t).
 Densities n_i = exp(-max(h, 0) / H_i) (the ground is transparent to the table: a ray continues smoothly
-below it, where no visible surface lies). T_sun is 0 where the ray to the sun meets the planet (its shadow).
+below it, so terrain below the scene's ground level, which a flat scene may hold, keeps its haze). T_sun is 0
+where the ray to the sun meets the planet (its shadow).
 
 Table axes (:class:`TableShape`)
-    * elevation rows, odd count, the middle row on the frame's horizon dip e_h = -arccos(R / r_c): row
-      (u + 1) (N_e - 1) / 2 with u = sign(e - e_h) sqrt(|e - e_h| / (pi/2 -+ e_h)), so rows crowd at the grazing
-      rays whose long paths need them (0.09 deg apart next to it with 65 rows);
-    * azimuth slices, a = pi j / (N_a - 1), interpolated linearly (the shader's manual blend);
+    * target-altitude rows: the altitude h_p of the point the ray reaches, h_j = top (j / (N_h - 1))^3
+      (:func:`row_altitudes`; dense near the ground, where the haze and most surfaces are); the ray's elevation
+      follows from the triangle (r_c, r_p, d) (:func:`bake_tile`), so a row holds every ray ending at that altitude;
+    * azimuth slices, a = pi j / (N_a - 1) from the sun's azimuth, interpolated linearly (the shader's manual blend);
     * distance columns, d_k = D (k / (N_d - 1))^2 with D the longest ray that stays above the ground inside
-      the atmosphere (camera to tangent point to the top), d beyond D clamped.
-Within one azimuth slice the texture's bilinear filter does (elevation, distance).
+      the atmosphere (:func:`max_distance`), d beyond D clamped.
+Within one azimuth slice the shader blends (row, column) bilinearly from four unfiltered texels.
 
 Sun transmittance: optical depth to space tau_i = beta_i H_i exp(-h / H_i) Ch(r / H_i, chi)
 (:mod:`.optical_depth`), with log Ch interpolated from a table in (altitude, position between the local

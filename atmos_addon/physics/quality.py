@@ -75,11 +75,12 @@ class Level(enum.Enum):
 
 #: One-line descriptions for the UI.
 LEVEL_DESCRIPTIONS = {
-    Level.FAST: "Constant sea-level density along the ray (Hoffman & Preetham eq. 19); ground-level views",
-    Level.BALANCED: "Density falling with altitude along the curved ray, in closed form; drones, aircraft, "
-                    "distant mountains",
-    Level.PRECISE: "Single scattering integrated numerically and baked into a per-frame table (optional multiple "
-                   "scattering); every case within 1 %",
+    Level.FAST: "Constant sea-level density along the ray (Hoffman & Preetham eq. 19), single scattering; "
+                "ground-level views, about half the light of every-order scattering",
+    Level.BALANCED: "Density falling with altitude along the curved ray, in closed form, single scattering; drones, "
+                    "aircraft, distant mountains",
+    Level.PRECISE: "Scattering integrated numerically and baked into a per-frame table; with multiple scattering "
+                   "(the default) within 3 % of every-order scattering by day, 7 % at sunset (docs/quality.md)",
 }
 #: Levels with an evaluator, cheapest first (every level has one): :func:`choose_level` picks among these.
 IMPLEMENTED_LEVELS = tuple(Level)

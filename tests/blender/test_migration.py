@@ -5,7 +5,8 @@ its node-group migrations).
 ``data/atmos_addba16.blend`` was written by main at addba16 (the release before the Blender-layer redesign) with
 ``tools/make_release_blend.py``, saved by Blender 4.5.15, with the pixels that release rendered beside it: two
 scenes, Compositor mode at the Fast level and Per Pixel mode at the Balanced level, emissive planes against the
-Atmos sky. Opened with today's add-on, every Atmos node group must carry today's stamp (:mod:`atmos_addon.nodes.stamps`),
+Atmos sky. Opened with today's add-on, every Atmos node group must carry today's stamp
+(:mod:`atmos_addon.nodes.stamps`),
 rebuilt in place (no second copy, the compositor's and materials' links kept), none may read as edited, and every
 scene must render as it did (Cycles, pixel centres: emission and sky only, no sampling noise).
 """

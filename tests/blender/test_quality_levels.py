@@ -49,8 +49,8 @@ def _scene(camera_z: float = 2.0, far: float = 3000.0):
 def test_quality_switch_edits_the_same_group_and_materials_keep_it():
     scene = _scene()
     orchestrator.enable_effect(scene)
-    tree = bpy.data.node_groups[GROUP]
-    assert tree["atmos_features"] == "rayleigh+mie+abs" and scene.atmos.status_quality.startswith("Fast")
+    tree = bpy.data.node_groups[GROUP]  # the default: Precise with multiple scattering
+    assert tree["atmos_features"] == "rayleigh+mie+abs+precise" and scene.atmos.status_quality.startswith("Precise")
     groups_before = len(bpy.data.node_groups)
     pointer = tree.as_pointer()
     scene.atmos.quality = "BALANCED"

@@ -184,7 +184,9 @@ def test_save_and_reopen_keeps_the_effect_and_load_post_resyncs(tmp_path: Path) 
     before_compositor = compositor_state(scene)
     scene.atmos.mie_scattering_per_km = (0.05, 0.06, 0.07)
     scene.atmos.distance_scale = 3.0
+    bpy.context.view_layer.update()   # the lamp's world matrix, as the GUI has it
     orchestrator.enable_effect(scene)
+    np.testing.assert_allclose(scene["atmos_sun_direction"], lamp_direction(sun), atol=1e-6)
     settings = {name: tuple(getattr(scene.atmos, name)) if hasattr(getattr(scene.atmos, name), "__len__")
                 else getattr(scene.atmos, name)
                 for name in ("mie_scattering_per_km", "distance_scale", "rayleigh_scattering_per_km", "mie_g")}
@@ -213,6 +215,7 @@ def test_save_and_reopen_keeps_the_effect_and_load_post_resyncs(tmp_path: Path) 
     assert compositor_state(scene) == composited
     assert compositor.STATE_KEY in scene
     reloaded = parameters(scene)
+    # A file holds no world matrices: load_post evaluates the scene before reading the lamp (it wrote the zenith).
     np.testing.assert_allclose(reloaded["atmos_sun_direction"], params["atmos_sun_direction"], atol=1e-6,
                                err_msg="load_post did not re-sync the sun direction")
     for name in PARAMETERS:
@@ -702,6 +705,29 @@ def test_empty_scene_enables_with_a_clear_report() -> None:
     assert scene.atmos.status_materials == "0 material(s) with aerial perspective"
     orchestrator.disable_effect(scene)
     assert compositor.STATE_KEY not in scene and len(scene.objects) == 0
+
+
+def test_a_script_made_sun_is_read_where_it_points_by_the_api_and_after_reopening(tmp_path: Path) -> None:
+    """A script that makes a sun lamp and calls ``api.enable`` at once (no depsgraph evaluation between: its
+    ``matrix_world`` still reads the identity) gets the sun where the lamp points, not at the zenith; and so does
+    the file saved and opened again (a file holds no world matrices: the load handler evaluates first). Both read
+    the zenith before the fix, on 4.5 and 5.2."""
+    from atmos_addon import api
+
+    scene = bpy.context.scene
+    camera_looking_north(scene)
+    sun = sun_lamp(scene, rotation=(math.radians(70.0), 0.0, math.radians(-40.0)))
+    mesh_object("A", user_material())
+    api.enable(scene, quality="FAST")
+    np.testing.assert_allclose(scene["atmos_sun_direction"], lamp_direction(sun), atol=1e-6)
+    assert abs(scene["atmos_sun_direction"][2] - math.cos(math.radians(70.0))) < 1e-6
+    path = tmp_path / "script.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    scene = bpy.context.scene
+    np.testing.assert_allclose(scene["atmos_sun_direction"], lamp_direction(bpy.data.objects["Sun"]), atol=1e-6)
+    assert abs(scene["atmos_sun_direction"][2] - math.cos(math.radians(70.0))) < 1e-6
 
 
 def test_no_camera_enable_effect_does_not_crash_and_the_api_refuses() -> None:

@@ -294,8 +294,11 @@ def test_installed_sky_lights_with_the_table_and_shows_the_analytic_sky(addon, e
     """Through the installed world: camera rays see the analytic sky with its disk, light comes from the table.
 
     Emptying the table (all zeros) must darken the world-lit floor in Cycles (only non-camera rays read it)
-    and leave the camera's sky pixels exactly as they were."""
+    and leave the camera's sky pixels exactly as they were. At Fast: at Precise (the default) Cycles' other rays
+    see the Precise sky itself, not the table (``world._route_other_rays``;
+    test_precise_level_shows_and_lights_with_the_precise_sky)."""
     scene = _world_lit_plane_scene(engine)
+    scene.atmos.quality = "FAST"
     scene.atmos.drive_sun_lamp = False  # no lamp: the world is the only light
     orchestrator.enable_effect(scene)
     scene.render.use_compositing = False

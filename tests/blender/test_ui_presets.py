@@ -252,7 +252,7 @@ def test_every_panel_draws_for_every_builtin_preset(user_presets):
     calls = draw_everything(scene)
     assert ("menu", "ATMOS_MT_presets", "Mine (modified)") in calls
     assert ("label", "Odd: no output node") in calls
-    assert ("label", scene.atmos.status_quality) in calls and scene.atmos.status_quality.startswith("Fast")
+    assert ("label", scene.atmos.status_quality) in calls and scene.atmos.status_quality.startswith("Precise")
 
 
 def _drawn_labels(calls: list, settings) -> list[str]:

@@ -44,8 +44,11 @@ def frame_inputs(scene) -> list[tuple[int, float, float]]:
     metres = scene_reading.metres_per_unit(scene)
 
     def now(frame: int) -> tuple[int, float, float]:
+        # Rounded as the bake key records them, so that the table is a function of its key: a lamp matrix that
+        # differs in its last float32 bit (the same rotation evaluated again after an undo) bakes the same pixels.
         direction, _ = scene_reading.sun_direction(scene)
-        return frame, _camera_altitude_m(scene, metres), math.asin(float(np.clip(direction[2], -1.0, 1.0)))
+        elevation = math.asin(float(np.clip(direction[2], -1.0, 1.0)))
+        return frame, round(_camera_altitude_m(scene, metres), 3), round(elevation, 7)
 
     if not moves(scene):
         return [now(scene.frame_current)]
@@ -148,7 +151,8 @@ def bake(scene, *, force: bool = False) -> int:
     inputs = frame_inputs(scene)
     key = _bake_key(atmosphere, albedo, multiple, inputs)
     image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
-    if not force and image is not None and image.get(_KEY) == key and scene_reading.groups().parameters.PRECISE_TILE in scene:
+    tile_parameter = scene_reading.groups().parameters.PRECISE_TILE
+    if not force and image is not None and image.get(_KEY) == key and tile_parameter in scene:
         _link_image(image)
         _revalidate_drivers(scene)
         return 0
@@ -194,7 +198,8 @@ def remove(scene) -> None:
     _clear_keys(scene)
     image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
     still_used = any(getattr(other, "atmos", None) is not None and other.atmos.enabled and other is not scene
-                     and other.get(scene_reading.groups().parameters.PRECISE_TILE) is not None for other in bpy.data.scenes)
+                     and other.get(scene_reading.groups().parameters.PRECISE_TILE) is not None
+                     for other in bpy.data.scenes)
     if image is not None and not still_used:
         bpy.data.images.remove(image)
 
