@@ -113,7 +113,8 @@ def _open_scene(spec: str):
     if spec in SAMPLE_SCENES and not path.exists():
         return importlib.import_module(f"{__package__}.sample_scenes.{spec}").build()
     if not path.is_file():
-        raise CliError(f"scene file '{spec}' does not exist (give a .blend file, or one of: {', '.join(SAMPLE_SCENES)})")
+        raise CliError(f"scene file '{spec}' does not exist (give a .blend file, or one of: "
+                       f"{', '.join(SAMPLE_SCENES)})")
     try:
         bpy.ops.wm.open_mainfile(filepath=str(path.resolve()), load_ui=False)
     except RuntimeError as error:
@@ -229,7 +230,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     output = Path(args.output).resolve()
     exr = output.suffix.lower() == ".exr"
     if output.suffix.lower() not in {".png", ".exr"}:
-        raise CliError(f"--output must end in .png or .exr (multilayer EXR with the atmosphere AOVs), got '{output.name}'")
+        raise CliError(f"--output must end in .png or .exr (multilayer EXR with the atmosphere AOVs), "
+                       f"got '{output.name}'")
     scene = _prepare_scene(args)
     set_output_format(scene.render.image_settings, multilayer_exr=exr)
     _log(f"atmos: {render_settings(scene)}")
@@ -318,7 +320,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     scene.cycles.samples = args.samples
     api.enable(scene)
     valley_presets = [name for name in preset_library.BUILTIN_NAMES if name != "mars"]
-    elevations = [60.0, 20.0, 5.0, 1.0]
+    elevations = [60.0, 20.0, 5.0, 1.0, -4.0]   # through a low sun to the blue hour
 
     def progress(done: int, label: str) -> None:
         _log(f"atmos: demo cell {done}/{len(valley_presets) * len(elevations)}: {label}")
