@@ -124,7 +124,7 @@ def measure_reference() -> dict[str, dict]:
 
 def measure_precise(multiple_scattering: bool) -> dict[str, dict]:
     """The Precise level's integrand along whole sky rays (``physics.precise.sky_radiance``): single scattering
-    with the sun's transmittance from its table, plus Hillaire 2020's multiple scattering when asked (default
+    with the sun's transmittance from its table, plus its multiple-scattering table when asked (default
     ground albedo). Lit from above the atmosphere like the brute force (no ground-level E_sun, no ozone)."""
     atm = Atmosphere()
     results = {}
