@@ -340,3 +340,20 @@ def test_multiple_scattering_at_a_low_sun_follows_the_complete_reference(name, l
     _, l_in = evaluate_precise(tile, case.view_dirs, case.sun_dir, case.distances_m, case.atmosphere, np.float64)
     ratio = float(np.mean(l_in / reference))
     assert low < ratio < high, ratio
+
+
+def test_bake_tile_keeps_its_last_tiles_read_only_and_integrate_tile_bakes_the_same() -> None:
+    """A scene switched off and on, an undo or a sun moved back reuses the bake: the same inputs return the same
+    tile (read-only, so no caller can change what the next one gets), other inputs another, and the uncached
+    integration gives the same numbers."""
+    atm = Atmosphere()
+    from atmos_addon.physics import precise
+
+    first = precise.bake_tile(atm, 2.0, math.radians(30.0))
+    assert precise.bake_tile(atm, 2.0, math.radians(30.0), ground_albedo=[0.18, 0.2, 0.15]) is first
+    assert not first.a_rayleigh.flags.writeable and not first.mean_extinction.flags.writeable
+    other = precise.bake_tile(atm, 2.0, math.radians(31.0))
+    assert other is not first and not np.array_equal(other.a_rayleigh, first.a_rayleigh)
+    fresh = precise.integrate_tile(atm, 2.0, math.radians(30.0))
+    assert fresh is not first
+    np.testing.assert_array_equal(fresh.pixels(), first.pixels())
