@@ -45,18 +45,6 @@ ELEVATIONS_DEG = (60.0, 20.0, 5.0, 1.0, -4.0)
 BLENDER_LABEL = "blender sky"
 
 
-def read_png(path: Path) -> np.ndarray:
-    """An 8-bit PNG's stored values in 0-1, (H, W, 4), row 0 at the top."""
-    image = bpy.data.images.load(str(path), check_existing=False)
-    try:
-        width, height = image.size
-        pixels = np.empty(width * height * 4, dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-    finally:
-        bpy.data.images.remove(image)
-    return pixels.reshape(height, width, 4)[::-1]
-
-
 def valley_scene(cell: tuple[int, int], samples: int):
     """The valley sample at the cell's size, Cycles with ``samples`` samples, denoised."""
     scene = valley.build(resolution=cell)
@@ -73,7 +61,7 @@ def atmos_rows(cell: tuple[int, int], samples: int, folder: Path) -> np.ndarray:
                                               output_path=folder / "atmos.png",
                                               progress=lambda done, total: print(f"atmos cell {done}/{total}",
                                                                                  flush=True))
-    return read_png(path)
+    return contact_sheet.read_png(path)
 
 
 def sky_model() -> str:
@@ -141,7 +129,8 @@ def blender_row(cell: tuple[int, int], samples: int, folder: Path) -> tuple[np.n
         settings.file_format, settings.color_mode, settings.color_depth = "PNG", "RGBA", "8"
         scene.render.filepath = str(folder / f"blender{column}.png")
         bpy.ops.render.render(write_still=True, scene=scene.name)
-        row[:, column * width:(column + 1) * width] = read_png(Path(scene.render.filepath))[:height, :width]
+        cell_pixels = contact_sheet.read_png(Path(scene.render.filepath))
+        row[:, column * width:(column + 1) * width] = cell_pixels[:height, :width]
         row[..., 3] = 1.0
         print(f"blender sky cell {column + 1}/{len(ELEVATIONS_DEG)}", flush=True)
     return row, strength_sky

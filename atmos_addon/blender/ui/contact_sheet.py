@@ -80,7 +80,7 @@ def _update_view_layers(scene) -> None:
         layer.update()
 
 
-def _read_png(path: Path) -> np.ndarray:
+def read_png(path: Path) -> np.ndarray:
     """An 8-bit PNG's stored values as floats in 0-1, shape (H, W, 4), row 0 at the top (no colour conversion)."""
     image = bpy.data.images.load(str(path), check_existing=False)
     try:
@@ -192,7 +192,7 @@ class ContactSheetJob:
             preset_ops.set_sun_angles(scene, math.radians(elevation), azimuth)
             _update_view_layers(scene)  # the sync at the end of the batch reads the lamp's new matrix
         bpy.ops.render.render(write_still=True, scene=scene.name)
-        cell = _read_png(Path(scene.render.filepath))
+        cell = read_png(Path(scene.render.filepath))
         width, height = self.cell_size
         strip = label_height(width)
         top, left = row * (height + strip), column * width
