@@ -205,7 +205,8 @@ def main(argv=None) -> int:
                  f"inscattering_mc, {args.paths} paths per ray and channel, {LOW_SUN_PATH_FACTOR}x as many for the "
                  f"low-sun cases, seed {COMPLETE_REFERENCE_SEED}), the "
                  f"spherical planet, a Lambertian ground of albedo ({albedo}) as Precise's multiple-scattering table "
-                 f"assumes, three channels, no ozone (ozone and the spectrum: docs/reference_sky.md). Pixel: "
+                 f"assumes, three channels, the case's ozone (Earth: 300 DU, the default's; Mars: none; the spectrum: "
+                 f"docs/reference_sky.md). Pixel: "
                  f"L0 F_ex + L_in of the albedo-0.3 surface, errors as above; luminance: Rec.709 Y of the pixel; xy: "
                  f"CIE 1931 chromaticity distance ('black': the level renders black there). The last column is "
                  f"the reference's own noise.\n\n{complete}\n")

@@ -8,8 +8,8 @@ The issue's checklist for the default: a blue clear zenith at noon; at a 5 deg s
 horizon; a blue hour that is blue (zenith B > G > R with the sun 2-6 deg below the horizon); an overcast sky still
 lit at a 1 deg sun; Mars butterscotch by day with a blue glow around the setting sun. Radiances from
 ``physics.precise.sky_radiance`` (the Precise level's integrand with its multiple-scattering table, three channels,
-no ozone), in W/(m^2 sr) of the sun lamp's strength unit. Numpy only; prints a Markdown table. The physics test
-``tests/physics/test_default_look.py`` holds the checklist.
+the presets' ozone: 300 DU on Earth, none on Mars), in W/(m^2 sr) of the sun lamp's strength unit. Numpy only;
+prints a Markdown table. The physics test ``tests/physics/test_default_look.py`` holds the checklist.
 """
 
 from __future__ import annotations

@@ -18,7 +18,9 @@ from the sun, for:
 
 Beside them, constants measured in this project with Blender 5.0 (see the issue, "The atmosphere as it is:
 multiple scattering, ozone and spectral light"): the MULTIPLE_SCATTERING Sky Texture's zenith B/R with ozone
-on and off, and the current Atmos default's and Precise + Multiple Scattering's.
+on and off, and Atmos Fast's (the seed's model, the default until December 2026). The Atmos default (Precise with
+multiple scattering, the clear preset with its 300 DU of ozone) is computed here from its numpy twin,
+:func:`atmos_addon.physics.precise.sky_radiance` (three channels, seconds).
 
 Every wavelength triple has its own fixed seed (from ``--seed``), the same in every run, so the output does not
 depend on ``--workers`` and the differences between runs (ozone on / off) are correlated. Standard errors are
@@ -48,6 +50,7 @@ sys.path.insert(0, str(REPO_ROOT))
 
 from atmos_addon import presets  # noqa: E402
 from atmos_addon.physics.atmosphere import Atmosphere  # noqa: E402
+from atmos_addon.physics.precise import sky_radiance  # noqa: E402
 from atmos_addon.physics.reference import _distance_to_top, single_scattering  # noqa: E402
 from atmos_addon.physics.spectral_reference import (RGB_WEIGHTS, TRIPLE_INDICES, XYZ_WEIGHTS,  # noqa: E402
                                                     aerosol_angstrom_fit, linear_stderr, ratio_and_stderr,
@@ -69,8 +72,16 @@ END_MARK = "<!-- END GENERATED -->"
 #: Zenith B/R measured in this project with Blender 5.0 (see the issue): sun elevation -> value; None = black.
 BLENDER_MS_OZONE_ON = {60.0: 3.48, 20.0: 4.28, 5.0: 3.38, 1.0: 2.47, -2.0: 2.89, -4.0: 8.08}
 BLENDER_MS_OZONE_OFF = {60.0: 3.30, 20.0: 3.77, 5.0: 2.35, 1.0: 1.41, -2.0: 1.34, -4.0: 3.01}
-ATMOS_DEFAULT = {60.0: 2.13, 20.0: 2.11, 5.0: 0.41, 1.0: 0.01, -2.0: None, -4.0: None}
-ATMOS_PRECISE_MS = {60.0: 2.83, 20.0: 3.80, 5.0: 2.53, 1.0: 1.73, -2.0: 1.36, -4.0: 1.60}
+ATMOS_FAST = {60.0: 2.13, 20.0: 2.11, 5.0: 0.41, 1.0: 0.01, -2.0: None, -4.0: None}
+
+
+def atmos_default_zenith_b_over_r(elevation_deg: float) -> float:
+    """Zenith B/R of the Atmos default (Precise with multiple scattering, the clear preset with its ozone) seen from
+    2 m, from the Precise level's integrand (:func:`atmos_addon.physics.precise.sky_radiance`)."""
+    e = math.radians(elevation_deg)
+    radiance = sky_radiance(np.array([0.0, 0.0, 1.0]), np.array([math.cos(e), 0.0, math.sin(e)]),
+                            presets.load("clear").atmosphere, camera_altitude_m=2.0)
+    return float(radiance[2] / radiance[0])
 
 # Blender 5's MULTIPLE_SCATTERING atmosphere (intern/sky/source/sky_multiple_scattering.cpp, Blender 5.0; MIT,
 # Fernando Garcia Linan): spectral samples at 630, 560, 490, 430 nm, lengths in km.
@@ -192,6 +203,7 @@ def markdown(results: dict, seconds: dict, elevations: tuple[float, ...], comman
     """The generated block of the report."""
     fit = aerosol_angstrom_fit(presets.load("clear").atmosphere)
     blender_fit = aerosol_angstrom_fit(blender5_atmosphere())
+    atmos_default = {e: atmos_default_zenith_b_over_r(e) for e in elevations}
     total = sum(seconds.values())
     lines = [BEGIN_MARK, "", f"Produced by `{command}`: {paths} paths per view and wavelength, seed {seed}, "
              f"{workers} worker process(es), {total / 60.0:.1f} min in all "
@@ -207,11 +219,12 @@ def markdown(results: dict, seconds: dict, elevations: tuple[float, ...], comman
 
     lines += ["**Zenith B/R** (linear Rec.709 from the spectrum; ± one standard error). Reference: the clear "
               "preset; \"single\": first order only; gain: all orders / single. Blender 5.0 "
-              "MULTIPLE_SCATTERING, Atmos default and Atmos Precise + MS: measured in this project, Blender 5.0, "
-              "see the issue.", "",
+              "MULTIPLE_SCATTERING and Atmos Fast (the seed's model, the default until December 2026): measured in "
+              "this project, Blender 5.0, see the issue. Atmos default: Precise with multiple scattering, the clear "
+              "preset with its 300 DU of ozone, three channels (physics.precise.sky_radiance).", "",
               "| sun | ref., ozone on | single, ozone on | gain | ref., ozone off | single, ozone off | gain "
               "| ref. in Blender's atm., ozone on | ... ozone off | Blender MS, ozone on | Blender MS, ozone off "
-              "| Atmos default | Atmos Precise + MS |",
+              "| Atmos Fast | Atmos default |",
               "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for e in elevations:
         on, off = results["ozone on", e], results["ozone off", e]
@@ -224,7 +237,7 @@ def markdown(results: dict, seconds: dict, elevations: tuple[float, ...], comman
             f"| {_pm(b_on['B/R'][0], b_on['B/R_se'][0])} | {_pm(b_off['B/R'][0], b_off['B/R_se'][0])} "
             f"| {_value(BLENDER_MS_OZONE_ON.get(e, float('nan')))} "
             f"| {_value(BLENDER_MS_OZONE_OFF.get(e, float('nan')))} "
-            f"| {_value(ATMOS_DEFAULT.get(e, float('nan')))} | {_value(ATMOS_PRECISE_MS.get(e, float('nan')))} |")
+            f"| {_value(ATMOS_FAST.get(e, float('nan')))} | {atmos_default[e]:.3g} |")
     lines += ["", "(nan: not measured.)", ""]
 
     for run in ("ozone on", "ozone off", "ozone on, single", "ozone off, single"):
@@ -244,10 +257,10 @@ def markdown(results: dict, seconds: dict, elevations: tuple[float, ...], comman
         lines.append("")
 
     lines += ["**Differences over 10 %** in zenith B/R, as generated: Blender's MULTIPLE_SCATTERING and the Atmos "
-              "rows against the reference (clear preset; Atmos has no ozone, so its rows are set against ozone "
-              "off). For Blender the difference is split into the atmospheres (reference in Blender's atmosphere "
-              "over the reference in the clear preset) and Blender's model (its sky over the reference in its own "
-              "atmosphere); the two factors multiply to the total.", "",
+              "rows against the reference (clear preset; the Atmos rows against ozone on: the default carries "
+              "300 DU, Fast's sky has none). For Blender the difference is split into the atmospheres (reference "
+              "in Blender's atmosphere over the reference in the clear preset) and Blender's model (its sky over the "
+              "reference in its own atmosphere); the two factors multiply to the total.", "",
               "| sun | ozone | model | model B/R | reference | total | atmospheres | model's approximation |",
               "|---:|---|---|---:|---:|---:|---:|---:|"]
     for e in elevations:
@@ -260,12 +273,12 @@ def markdown(results: dict, seconds: dict, elevations: tuple[float, ...], comman
                     lines.append(f"| {e:g} | {ozone} | Blender 5.0 MS | {blender[e]:.3g} | {reference:.3g} "
                                  f"| {_percent(total_diff)} | {_percent(_difference(reference, in_blender))} "
                                  f"| {_percent(_difference(in_blender, blender[e]))} |")
-        reference = results["ozone off", e]["B/R"][0]
-        for label, table in (("Atmos default", ATMOS_DEFAULT), ("Atmos Precise + MS", ATMOS_PRECISE_MS)):
+        reference = results["ozone on", e]["B/R"][0]
+        for label, table in (("Atmos Fast", ATMOS_FAST), ("Atmos default", atmos_default)):
             if e in table:
                 diff = _difference(reference, table[e])
                 if table[e] is None or abs(diff) > 0.1:
-                    lines.append(f"| {e:g} | off | {label} | {_value(table[e])} | {reference:.3g} "
+                    lines.append(f"| {e:g} | on | {label} | {_value(table[e])} | {reference:.3g} "
                                  f"| {'black' if diff is None else _percent(diff)} | - | - |")
     lines += ["", END_MARK]
     return "\n".join(lines)

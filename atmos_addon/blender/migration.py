@@ -14,8 +14,9 @@ the quality, rebuild its node groups and look different). Two rules keep every f
 from __future__ import annotations
 
 #: Settings whose default changed, with the default a file saved before the change was made with. December 2026
-#: (issue 27): the default became the complete model, Precise with multiple scattering; it was Fast without.
-FORMER_DEFAULTS = {"quality": "FAST", "multiple_scattering": False}
+#: (issue 27): the default became the complete model, Precise with multiple scattering and 300 DU of ozone; it was
+#: Fast without either.
+FORMER_DEFAULTS = {"quality": "FAST", "multiple_scattering": False, "ozone_column_du": 0.0}
 
 
 def pin_defaults(settings) -> None:

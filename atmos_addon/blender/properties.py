@@ -22,6 +22,7 @@ from bpy.props import (
 )
 
 from ..physics import Atmosphere
+from ..physics.spectrum import DEFAULT_OZONE_COLUMN_DU
 
 _CLEAR = Atmosphere()
 
@@ -243,6 +244,21 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         default=tuple(float(v) for v in _CLEAR.sun_irradiance_top),
         min=0.0,
         soft_max=100.0,
+        update=_on_parameter,
+    )
+    ozone_column_du: FloatProperty(
+        name="Ozone (DU)",
+        description=(
+            "Total ozone column in Dobson units (Earth: about 300; 0: none). Ozone lies 10-40 km up and absorbs "
+            "orange and green light without scattering it: it keeps the twilight zenith blue and deepens the "
+            "low sun's colour. Felt at the Precise level (sky, haze, multiple scattering) and by the sun lamp "
+            "at every level"
+        ),
+        default=DEFAULT_OZONE_COLUMN_DU,
+        min=0.0,
+        soft_max=600.0,
+        precision=0,
+        step=1000,
         update=_on_parameter,
     )
     wavelengths_nm: FloatVectorProperty(

@@ -23,6 +23,7 @@ FIELD_MAP: tuple[tuple[str, str, float], ...] = (
     ("atmosphere_height", "atmosphere_height", 1.0),
     ("sun_irradiance_top", "sun_irradiance_top", 1.0),
     ("wavelengths_nm", "wavelengths_nm", 1.0),
+    ("ozone_column_du", "ozone_column_du", 1.0),
 )
 
 

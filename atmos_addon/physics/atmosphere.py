@@ -15,6 +15,12 @@ Default: a clear Earth sky.
   albedo 0.91), scale height 1200 m, Henyey-Greenstein g = 0.76 (Bruneton & Neyret 2008). Vertical aerosol
   optical depth 0.044; with the Rayleigh term the 550 nm extinction is 4.5e-5 1/m, a meteorological
   visibility 3.912 / beta_ex of about 88 km (Koschmieder).
+* No ozone (``ozone_column_du`` = 0): the seed's atmosphere. The product's Earth presets carry 300 DU, the
+  Earth's mean column, in a tent-shaped layer between 10 and 40 km (:meth:`Atmosphere.ozone_density`, the
+  profile of Bruneton 2017). Ozone absorbs and does not scatter; its cross-section per channel is the
+  Daumont-Brion-Malicet spectrum averaged over the channel's sunlit band (R 4.0e-25, G 3.0e-25, B 0.31e-25 m^2
+  per molecule, :data:`~atmos_addon.physics.spectrum.OZONE_CHANNEL_CROSS_SECTION_M2`), so it takes red and green
+  from light that crosses the layer at a slant: the blue of the twilight zenith.
 * ``sun_irradiance_top`` = 4.5 W/m^2 per channel, white. Blender's sun strength is a render unit, not
   the solar constant (1361 W/m^2): daylight at film exposure 0 uses a sun strength of about 3-5. With
   4.5 above the atmosphere the clear-sky ground sun has a luminance-weighted strength of about 3.9 at
@@ -32,6 +38,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .rayleigh import rayleigh_coefficients, rayleigh_column_scale_height
+from .spectrum import (DEFAULT_OZONE_HALF_WIDTH_M, DEFAULT_OZONE_PEAK_ALTITUDE_M, OZONE_CHANNEL_CROSS_SECTION_M2,
+                       ozone_number_density_per_m3)
 
 #: Default colour-channel wavelengths (R, G, B), nm.
 DEFAULT_WAVELENGTHS_NM = (680.0, 550.0, 440.0)
@@ -96,7 +104,9 @@ class Atmosphere:
     ``rayleigh_scattering=None`` (the default) computes the molecular coefficients from
     ``wavelengths_nm`` for standard sea-level air. Scalars are broadcast to the three channels;
     arrays are stored read-only. Units: coefficients 1/m, lengths m, irradiance W/m^2 (Blender
-    sun strength), wavelengths nm; ``mie_g`` is dimensionless with positive values scattering forward.
+    sun strength), wavelengths nm, ozone Dobson units (the whole column; 0: none); ``mie_g`` is dimensionless with
+    positive values scattering forward. Ozone adds only absorption: :attr:`extinction_coefficient` is the sea-level
+    value, where the layer is empty; :meth:`ozone_absorption_at` gives it at altitude.
     """
 
     rayleigh_scattering: ArrayLike | None = None
@@ -109,6 +119,7 @@ class Atmosphere:
     atmosphere_height: float = DEFAULT_ATMOSPHERE_HEIGHT_M
     sun_irradiance_top: ArrayLike = DEFAULT_SUN_IRRADIANCE_TOP
     wavelengths_nm: ArrayLike = field(default=DEFAULT_WAVELENGTHS_NM)
+    ozone_column_du: float = 0.0
 
     def __post_init__(self) -> None:
         wavelengths = _rgb("wavelengths_nm", self.wavelengths_nm)
@@ -128,6 +139,35 @@ class Atmosphere:
         object.__setattr__(self, "mie_g", g)
         for name in _LENGTH_FIELDS:
             object.__setattr__(self, name, _positive_length(name, getattr(self, name)))
+        try:
+            ozone = float(self.ozone_column_du)
+        except (TypeError, ValueError):
+            raise ValueError(f"Atmosphere.ozone_column_du must be a number of Dobson units; "
+                             f"got {self.ozone_column_du!r}") from None
+        if not np.isfinite(ozone) or ozone < 0.0:
+            raise ValueError(f"Atmosphere.ozone_column_du must be finite and >= 0 (Dobson units); got {ozone!r}")
+        object.__setattr__(self, "ozone_column_du", ozone)
+
+    @property
+    def ozone_absorption(self) -> np.ndarray:
+        """Ozone absorption coefficient at the peak of its layer per channel, 1/m: the cross-section averaged over
+        each Rec.709 channel under sunlight (:data:`~atmos_addon.physics.spectrum.OZONE_CHANNEL_CROSS_SECTION_M2`;
+        ``wavelengths_nm`` do not enter) times the peak number density that holds ``ozone_column_du``
+        (:func:`~atmos_addon.physics.spectrum.ozone_number_density_per_m3`).
+        """
+        peak_per_m3 = float(ozone_number_density_per_m3(DEFAULT_OZONE_PEAK_ALTITUDE_M, self.ozone_column_du))
+        return OZONE_CHANNEL_CROSS_SECTION_M2 * peak_per_m3
+
+    @staticmethod
+    def ozone_density(altitude_m: ArrayLike) -> np.ndarray:
+        """Ozone density relative to its peak at ``altitude_m`` (m above the ground), dimensionless in [0, 1]:
+        the tent max(0, 1 - |h - 25 km| / 15 km) of Bruneton 2017, whose vertical integral is 15 km."""
+        altitude = np.asarray(altitude_m, dtype=np.float64)
+        return np.maximum(1.0 - np.abs(altitude - DEFAULT_OZONE_PEAK_ALTITUDE_M) / DEFAULT_OZONE_HALF_WIDTH_M, 0.0)
+
+    def ozone_absorption_at(self, altitude_m: ArrayLike) -> np.ndarray:
+        """Ozone absorption coefficient at ``altitude_m`` per channel, 1/m, shape altitude.shape + (3,)."""
+        return self.ozone_density(altitude_m)[..., np.newaxis] * self.ozone_absorption
 
     @property
     def scattering_coefficient(self) -> np.ndarray:

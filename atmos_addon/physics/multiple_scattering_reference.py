@@ -83,6 +83,8 @@ def _coefficients(altitude_m: np.ndarray, channel: np.ndarray, atm: Atmosphere,
     sigma_r = atm.rayleigh_scattering[channel] * rho_r
     sigma_m = atm.mie_scattering[channel] * rho_m
     sigma_ex = sigma_r + sigma_m + atm.mie_absorption[channel] * rho_m
+    if atm.ozone_column_du > 0.0:
+        sigma_ex = sigma_ex + atm.ozone_absorption[channel] * Atmosphere.ozone_density(altitude_m)
     if extra_absorption is not None:
         extra = np.asarray(extra_absorption(altitude_m), dtype=np.float64)
         sigma_ex = sigma_ex + np.take_along_axis(extra, np.broadcast_to(channel, altitude_m.shape)[..., None],

@@ -104,6 +104,8 @@ def optical_depth_to_space(altitude_m: ArrayLike, zenith_rad: ArrayLike, atm: At
     tau = beta_R H_R exp(-h / H_R) Ch((R + h) / H_R, chi)
         + (beta_M,sc + beta_M,abs) H_M exp(-h / H_M) Ch((R + h) / H_M, chi)
 
+    + beta_O3 * (slant column of the ozone's tent, :func:`ozone_slant_column`)
+
     (Chapman 1931; Hoffman & Preetham 2002, "Applying the Theory - Sunlight"). ``altitude_m`` (m,
     clamped at 0) and ``zenith_rad`` broadcast together. Rays that meet the ground never reach space:
     their optical depth is ``inf`` (transmittance exp(-tau) = 0), also in vacuum. The layers extend to
@@ -117,7 +119,46 @@ def optical_depth_to_space(altitude_m: ArrayLike, zenith_rad: ArrayLike, atm: At
                                atm.planet_radius)
            + layer_optical_depth(altitude, chi_missing, atm.mie_extinction, atm.mie_scale_height,
                                  atm.planet_radius))
+    if atm.ozone_column_du > 0.0:
+        tau = tau + atm.ozone_absorption * ozone_slant_column(altitude, np.cos(chi_missing), atm)[..., np.newaxis]
     return np.where(hits[..., np.newaxis], np.inf, tau)
+
+
+#: Gauss-Legendre nodes per piece of the ozone slant column (the tent is linear in altitude between its kinks).
+OZONE_QUADRATURE_NODES = 8
+_OZ_NODES, _OZ_WEIGHTS = np.polynomial.legendre.leggauss(OZONE_QUADRATURE_NODES)
+
+
+def ozone_slant_column(altitude_m: ArrayLike, cos_zenith: ArrayLike, atm: Atmosphere) -> np.ndarray:
+    """Integral of the ozone's relative density (:meth:`Atmosphere.ozone_density`) along a ray to the top of the
+    atmosphere, m; times :attr:`Atmosphere.ozone_absorption` it is the ozone's optical depth. Straight up from the
+    ground it is the tent's vertical integral, 15 km.
+
+    The ray r(s)^2 = r0^2 + 2 r0 mu s + s^2 is cut where it crosses the radii of the tent's kinks (R + 10, 25 and
+    40 km, both roots) and at its perigee s = -r0 mu; on each piece the density is a smooth function of s and
+    :data:`OZONE_QUADRATURE_NODES` Gauss-Legendre nodes integrate it. The solid planet is ignored (the callers mask
+    the rays that meet it); ``altitude_m`` is clamped at 0 and may lie above the top (0 upward).
+    """
+    altitude, mu = np.broadcast_arrays(np.maximum(np.asarray(altitude_m, dtype=np.float64), 0.0),
+                                       np.clip(np.asarray(cos_zenith, dtype=np.float64), -1.0, 1.0))
+    r0 = atm.planet_radius + altitude
+    r_top = atm.planet_radius + max(atm.atmosphere_height, float(np.max(altitude, initial=0.0)))
+    b = r0 * mu
+    c0 = r0 * r0 * (mu * mu - 1.0)                                   # r(s)^2 = (s + b)^2 - c0
+    s_top = -b + np.sqrt(np.maximum(b * b - r0 * r0 + r_top * r_top, 0.0))
+    cuts = [np.zeros_like(r0), s_top, -b]
+    for kink_m in (10_000.0, 25_000.0, 40_000.0):
+        r_k = atm.planet_radius + kink_m
+        disc = r_k * r_k + c0                                     # r(s) = r_k at s = -b +- sqrt(disc)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        for s in (-b - root, -b + root):
+            cuts.append(np.where(disc > 0.0, s, 0.0))
+    edges = np.sort(np.clip(np.stack(cuts, axis=-1), 0.0, s_top[..., None]), axis=-1)     # (..., 9)
+    lo, width = edges[..., :-1], np.diff(edges, axis=-1)                                   # (..., 8)
+    s = lo[..., None] + width[..., None] * 0.5 * (_OZ_NODES + 1.0)                          # (..., 8, n)
+    radius = np.sqrt(np.maximum(r0[..., None, None] ** 2 + 2.0 * b[..., None, None] * s + s * s, 0.0))
+    density = Atmosphere.ozone_density(radius - atm.planet_radius)
+    return np.sum(0.5 * width * np.sum(_OZ_WEIGHTS * density, axis=-1), axis=-1)
 
 
 def relative_air_mass(zenith_rad: ArrayLike, atm: Atmosphere) -> np.ndarray:

@@ -44,7 +44,9 @@ Within one azimuth slice the shader blends (row, column) bilinearly from four un
 
 Sun transmittance: optical depth to space tau_i = beta_i H_i exp(-h / H_i) Ch(r / H_i, chi)
 (:mod:`.optical_depth`), with log Ch interpolated from a table in (altitude, position between the local
-horizon and the zenith) (:class:`SunTransmittanceTable`, 0.02 % of tau against direct quadrature).
+horizon and the zenith) (:class:`SunTransmittanceTable`, 0.02 % of tau against direct quadrature), plus the
+ozone's beta_O3 times its slant column from the same grid. beta_ex everywhere is :func:`local_extinction`: the
+two exponential layers and, where the atmosphere has ozone, its absorbing tent 10-40 km up.
 
 Multiple scattering (:class:`MultipleScatteringTable`, per atmosphere): every order of the light scattered at
 least once, as the mean radiance Psi_ms(h, mu_s) at each altitude and sun (Hillaire 2020's isotropic assumption,
@@ -67,7 +69,7 @@ from numpy.typing import ArrayLike, DTypeLike
 
 from .aerial_perspective import one_minus_exp_over_x
 from .atmosphere import Atmosphere
-from .optical_depth import chapman
+from .optical_depth import chapman, ozone_slant_column
 from .phase import phase_hg, phase_rayleigh
 
 #: Ground albedo of the multiple-scattering table when none is given (a grey, green-ish land).
@@ -126,13 +128,22 @@ def target_altitude(camera_radius_m, cos_zenith, distance_m, planet_radius_m, dt
     return (r_c - dt(planet_radius_m)) + rise / (r_p + r_c)
 
 
+def local_extinction(atm: Atmosphere, n_rayleigh: np.ndarray, n_mie: np.ndarray, altitude_m: np.ndarray) -> np.ndarray:
+    """beta_R n_R + (beta_M,sc + beta_M,abs) n_M + beta_O3 n_O3(h), 1/m, (..., 3), from the relative densities of the
+    two exponential layers (..., 1) and the altitude (...) where the ozone's tent is read (none when there is none).
+    """
+    beta_ex = atm.rayleigh_scattering * n_rayleigh + atm.mie_extinction * n_mie
+    return beta_ex + atm.ozone_absorption_at(altitude_m) if atm.ozone_column_du > 0.0 else beta_ex
+
+
 class SunTransmittanceTable:
     """exp(-tau to space toward the sun) from any radius r and sun zenith cosine mu, per channel.
 
     log Ch of each layer is tabulated at altitudes h_j = top (j / (n - 1))^2 and at w_k = (k / (m - 1))^2 of
     the way from the local horizon mu_h(r) = -sqrt(1 - R^2 / r^2) to the zenith, and interpolated bilinearly;
-    the factor beta H exp(-h / H) is exact. Below mu_h the ray meets the planet: 0. A radius below the ground
-    is taken at the ground (the table's transparent ground, as its densities are).
+    the factor beta H exp(-h / H) is exact. The ozone's slant column (:func:`ozone_slant_column`), where there is
+    ozone, on the same grid, interpolated linearly. Below mu_h the ray meets the planet: 0. A radius below the
+    ground is taken at the ground (the table's transparent ground, as its densities are).
     """
 
     def __init__(self, atm: Atmosphere, n_altitudes: int = 96, n_cosines: int = 256) -> None:
@@ -147,6 +158,8 @@ class SunTransmittanceTable:
         zenith = np.arccos(mu)
         self.log_ch = np.stack([np.log(chapman(radius / h, zenith))
                                 for h in (atm.rayleigh_scale_height, atm.mie_scale_height)], axis=-1)   # (n, m, 2)
+        self.ozone_column = (ozone_slant_column(altitude[:, None], mu, atm)[..., None]
+                             if atm.ozone_column_du > 0.0 else None)                             # (n, m, 1), m
 
     def __call__(self, radius_m: ArrayLike, cos_zenith: ArrayLike) -> np.ndarray:
         atm = self.atm
@@ -164,6 +177,8 @@ class SunTransmittanceTable:
         for layer, beta, height in ((0, atm.rayleigh_scattering, atm.rayleigh_scale_height),
                                     (1, atm.mie_extinction, atm.mie_scale_height)):
             tau += beta * (height * np.exp(-altitude / height) * slant[..., layer])[..., None]
+        if self.ozone_column is not None:
+            tau += atm.ozone_absorption * _bilinear(self.ozone_column, i, k)
         return np.where(lit[..., None], np.exp(-tau), 0.0)
 
 
@@ -363,7 +378,7 @@ class MultipleScatteringTable:
         radius = np.sqrt(np.maximum(r0 * r0 + 2.0 * r0 * c[:, None] * t + t * t, 0.0))
         h = np.maximum(radius - r_ground, 0.0)
         n_r, n_m = np.exp(-h / atm.rayleigh_scale_height)[..., None], np.exp(-h / atm.mie_scale_height)[..., None]
-        tau_step = (atm.rayleigh_scattering * n_r + atm.mie_extinction * n_m) * dt
+        tau_step = local_extinction(atm, n_r, n_m, h) * dt
         tau_through = np.cumsum(tau_step, axis=1)
         seen = np.exp(-(tau_through - 0.5 * tau_step)) * dt                         # T dt to each step's midpoint
         r_end = np.sqrt(np.maximum(r0 * r0 + 2.0 * r0 * c * length + length * length, 0.0))
@@ -537,7 +552,7 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     radius = np.sqrt(np.maximum(r_c * r_c + 2.0 * r_c * t * sin_e + t * t, 0.0))  # (H, 1, D, S)
     h = np.maximum(radius - atm.planet_radius, 0.0)
     n_r, n_m = np.exp(-h / atm.rayleigh_scale_height)[..., None], np.exp(-h / atm.mie_scale_height)[..., None]
-    beta_ex = atm.rayleigh_scattering * n_r + atm.mie_extinction * n_m            # (H, 1, D, S, 3)
+    beta_ex = local_extinction(atm, n_r, n_m, h)                                  # (H, 1, D, S, 3)
     dt_dw = (2.0 * d * w)[..., None]                                              # (1, 1, D, S, 1)
     dw = w[1] - w[0]
     f = beta_ex * dt_dw
@@ -611,7 +626,7 @@ def sky_radiance(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, *, ca
     h = np.maximum(radius - r_ground, 0.0)
     n_r, n_m = np.exp(-h / atm.rayleigh_scale_height)[..., None], np.exp(-h / atm.mie_scale_height)[..., None]
     dt_dw = (2.0 * length * w)[..., None]                                               # (..., S, 1)
-    f = (atm.rayleigh_scattering * n_r + atm.mie_extinction * n_m) * dt_dw
+    f = local_extinction(atm, n_r, n_m, h) * dt_dw
     dw = w[1] - w[0]
     tau_to = np.concatenate([np.zeros_like(f[..., :1, :]),
                              np.cumsum(0.5 * (f[..., 1:, :] + f[..., :-1, :]) * dw, axis=-2)], axis=-2)

@@ -43,10 +43,12 @@ def _unit(vector: ArrayLike, name: str) -> np.ndarray:
 
 
 def _layer_extinction(altitude_m: np.ndarray, atm: Atmosphere) -> np.ndarray:
-    """Local extinction coefficient beta_R exp(-h/H_R) + beta_M,ex exp(-h/H_M), 1/m, shape (..., 3)."""
+    """Local extinction coefficient beta_R exp(-h/H_R) + beta_M,ex exp(-h/H_M) (+ the ozone's absorption in its
+    layer), 1/m, shape (..., 3)."""
     rayleigh = np.exp(-altitude_m / atm.rayleigh_scale_height)[..., np.newaxis]
     mie = np.exp(-altitude_m / atm.mie_scale_height)[..., np.newaxis]
-    return atm.rayleigh_scattering * rayleigh + atm.mie_extinction * mie
+    extinction = atm.rayleigh_scattering * rayleigh + atm.mie_extinction * mie
+    return extinction + atm.ozone_absorption_at(altitude_m) if atm.ozone_column_du > 0.0 else extinction
 
 
 def _distance_to_top(radius_m: np.ndarray, cos_zenith: np.ndarray, atm: Atmosphere) -> np.ndarray:

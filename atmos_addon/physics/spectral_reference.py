@@ -96,7 +96,8 @@ def triple_atmospheres(atmosphere: Atmosphere, sun_spectrum: ArrayLike | None = 
     return [atmosphere.replace(wavelengths_nm=WAVELENGTHS_NM[i],
                                rayleigh_scattering=coefficients["rayleigh_scattering"][i],
                                mie_scattering=coefficients["mie_scattering"][i],
-                               mie_absorption=coefficients["mie_absorption"][i], mie_g=g, sun_irradiance_top=sun[i])
+                               mie_absorption=coefficients["mie_absorption"][i], mie_g=g, sun_irradiance_top=sun[i],
+                               ozone_column_du=0.0)
             for i in TRIPLE_INDICES]
 
 

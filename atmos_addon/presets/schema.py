@@ -146,6 +146,8 @@ FIELDS: tuple[Field, ...] = (
     Field("atmosphere", "sun_irradiance_top_scale", "float", "", "sun_irradiance_top",
           "Top-of-atmosphere sun irradiance relative to Earth's default (Mars: 1 / 1.5237^2 = 0.4307).", 0.0, 1.0e3,
           excludes="sun_irradiance_top_w_m2"),
+    Field("atmosphere", "ozone_column_du", "float", "DU", "ozone_column_du",
+          "Total ozone column in Dobson units, in a layer 10-40 km up (Earth: about 300); absent: none.", 0.0, 1.0e4),
     # [sun]
     Field("sun", "elevation_deg", "float", "deg", "sun_elevation_deg",
           "Sun elevation above the horizon; absent leaves the user's sun alone.", -90.0, 90.0),

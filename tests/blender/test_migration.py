@@ -66,7 +66,8 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     api.enable(scene)
     settings = scene.atmos
     assert (settings.quality, settings.multiple_scattering) == ("PRECISE", True)
-    assert settings.is_property_set("quality") and settings.is_property_set("multiple_scattering")
+    assert settings.ozone_column_du == pytest.approx(300.0)
+    assert all(settings.is_property_set(name) for name in ("quality", "multiple_scattering", "ozone_column_du"))
     assert facts.plan_of(scene).level == "precise" and facts.plan_of(scene).multiple_scattering
     today = tmp_path / "today.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(today))
@@ -74,6 +75,15 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     bpy.ops.wm.open_mainfile(filepath=str(today))
     settings = bpy.context.scene.atmos
     assert (settings.quality, settings.multiple_scattering) == ("PRECISE", True)
+    assert settings.ozone_column_du == pytest.approx(300.0)
+
+    settings.property_unset("ozone_column_du")  # saved by the first complete-model release: Precise, no ozone yet
+    between = tmp_path / "between.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(between))
+    bpy.ops.wm.open_mainfile(filepath=str(between))
+    settings = bpy.context.scene.atmos
+    assert (settings.quality, settings.multiple_scattering, settings.ozone_column_du) == ("PRECISE", True, 0.0)
+    settings.property_unset("ozone_column_du")
 
     settings.property_unset("quality")          # as a file saved before the change holds them: never set
     settings.property_unset("multiple_scattering")
@@ -82,7 +92,9 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     bpy.ops.wm.open_mainfile(filepath=str(older))
     scene = bpy.context.scene
     assert (scene.atmos.quality, scene.atmos.multiple_scattering) == ("FAST", False)
+    assert scene.atmos.ozone_column_du == 0.0
     assert facts.plan_of(scene).level == "fast"
 
     bpy.ops.wm.read_factory_settings(use_empty=True)   # a new scene that never enabled Atmos gets today's defaults
     assert (bpy.context.scene.atmos.quality, bpy.context.scene.atmos.multiple_scattering) == ("PRECISE", True)
+    assert bpy.context.scene.atmos.ozone_column_du == pytest.approx(300.0)

@@ -57,3 +57,17 @@ def test_sunset_horizon_is_red_and_the_sun_orange(scene) -> None:
     lamp = next(obj for obj in scene.objects if obj.type == "LIGHT").data
     assert lamp.color[0] > lamp.color[1] > lamp.color[2], tuple(lamp.color)
     assert np.isfinite(horizon).all()
+
+
+def test_the_blue_hour_is_blue_and_ozone_makes_it_so(scene) -> None:
+    """The default (Precise with multiple scattering) with the clear preset, the sun 4 deg below the horizon: the
+    zenith renders B > G > R; the same sky without its ozone (the preset's 300 DU set to 0) is far less blue, as the
+    physics says (tests/physics/test_ozone.py: zenith B/R 3.1 against 1.4)."""
+    _setup(scene, "clear", -4.0)
+    assert scene.atmos.quality == "PRECISE" and scene.atmos.multiple_scattering
+    assert scene.atmos.ozone_column_du == 300.0
+    zenith = _look(scene, 90.0, 0.0)
+    assert zenith[2] > zenith[1] > zenith[0] > 0.0, zenith
+    scene.atmos.ozone_column_du = 0.0
+    without = _look(scene, 90.0, 0.0)
+    assert zenith[2] / zenith[0] > 1.8 * without[2] / without[0], (zenith, without)

@@ -53,6 +53,11 @@ def test_defaults_are_the_clear_atmosphere_in_per_km() -> None:
         np.testing.assert_allclose(settings.sun_irradiance_top, clear.sun_irradiance_top, rtol=1e-6)
         assert settings.rayleigh_scale_height == pytest.approx(clear.rayleigh_scale_height)
         assert settings.distance_scale == 1.0
+        from atmos_addon.blender import settings_io
+
+        # The product's default sky holds the Earth's ozone; Atmosphere() is the seed's atmosphere without it.
+        assert clear.ozone_column_du == 0.0 and settings.ozone_column_du == pytest.approx(300.0)
+        assert settings_io.atmosphere_from_settings(settings).ozone_column_du == pytest.approx(300.0)
     finally:
         atmos_addon.unregister()
 
@@ -88,7 +93,11 @@ def test_settings_round_trip_an_atmosphere_within_float32() -> None:
         for field in ("rayleigh_scattering", "mie_scattering", "mie_absorption", "mie_g", "sun_irradiance_top",
                       "wavelengths_nm"):
             np.testing.assert_allclose(getattr(back, field), getattr(mars, field), rtol=1e-6, err_msg=field)
-        for field in ("rayleigh_scale_height", "mie_scale_height", "planet_radius", "atmosphere_height"):
+        for field in ("rayleigh_scale_height", "mie_scale_height", "planet_radius", "atmosphere_height",
+                      "ozone_column_du"):
             assert getattr(back, field) == pytest.approx(getattr(mars, field), rel=1e-6), field
+        clear = presets.load("clear").atmosphere
+        orchestrator.apply_atmosphere(scene, clear)
+        assert settings_io.atmosphere_from_settings(scene.atmos).ozone_column_du == pytest.approx(300.0)
     finally:
         atmos_addon.unregister()

@@ -227,6 +227,7 @@ class ATMOS_PT_atmosphere_advanced(_SubPanel, bpy.types.Panel):
         column.separator()
         column.prop(settings, "planet_radius", text="Planet Radius")
         column.prop(settings, "atmosphere_height", text="Air Top")
+        column.prop(settings, "ozone_column_du", text="Ozone, DU")
         column.separator()
         _channels(column, settings, "wavelengths_nm", "Channels, nm")
 
