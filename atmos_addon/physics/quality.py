@@ -80,7 +80,7 @@ LEVEL_DESCRIPTIONS = {
     Level.BALANCED: "Density falling with altitude along the curved ray, in closed form, single scattering; drones, "
                     "aircraft, distant mountains",
     Level.PRECISE: "Scattering integrated numerically and baked into a per-frame table; with multiple scattering "
-                   "(the default) within 3 % of every-order scattering by day, 7 % at sunset (docs/quality.md)",
+                   "(the default) within 3 % of every-order scattering by day, 6.3 % at sunset (docs/quality.md)",
 }
 #: Levels with an evaluator, cheapest first (every level has one): :func:`choose_level` picks among these.
 IMPLEMENTED_LEVELS = tuple(Level)
