@@ -38,8 +38,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .rayleigh import rayleigh_coefficients, rayleigh_column_scale_height
-from .spectrum import (DEFAULT_OZONE_HALF_WIDTH_M, DEFAULT_OZONE_PEAK_ALTITUDE_M, OZONE_CHANNEL_CROSS_SECTION_M2,
-                       ozone_number_density_per_m3)
+from .spectrum import (DEFAULT_OZONE_PEAK_ALTITUDE_M, OZONE_CHANNEL_CROSS_SECTION_M2, ozone_number_density_per_m3,
+                       ozone_tent)
 
 #: Default colour-channel wavelengths (R, G, B), nm.
 DEFAULT_WAVELENGTHS_NM = (680.0, 550.0, 440.0)
@@ -162,8 +162,7 @@ class Atmosphere:
     def ozone_density(altitude_m: ArrayLike) -> np.ndarray:
         """Ozone density relative to its peak at ``altitude_m`` (m above the ground), dimensionless in [0, 1]:
         the tent max(0, 1 - |h - 25 km| / 15 km) of Bruneton 2017, whose vertical integral is 15 km."""
-        altitude = np.asarray(altitude_m, dtype=np.float64)
-        return np.maximum(1.0 - np.abs(altitude - DEFAULT_OZONE_PEAK_ALTITUDE_M) / DEFAULT_OZONE_HALF_WIDTH_M, 0.0)
+        return ozone_tent(altitude_m)
 
     def ozone_absorption_at(self, altitude_m: ArrayLike) -> np.ndarray:
         """Ozone absorption coefficient at ``altitude_m`` per channel, 1/m, shape altitude.shape + (3,)."""

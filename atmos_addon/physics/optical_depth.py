@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .atmosphere import Atmosphere
+from .spectrum import DEFAULT_OZONE_HALF_WIDTH_M, DEFAULT_OZONE_PEAK_ALTITUDE_M
 
 #: Altitude gain, in scale heights, at which the Chapman integral is truncated (neglects e^-40).
 CHAPMAN_CUTOFF_SCALE_HEIGHTS = 40.0
@@ -147,7 +148,8 @@ def ozone_slant_column(altitude_m: ArrayLike, cos_zenith: ArrayLike, atm: Atmosp
     c0 = r0 * r0 * (mu * mu - 1.0)                                   # r(s)^2 = (s + b)^2 - c0
     s_top = -b + np.sqrt(np.maximum(b * b - r0 * r0 + r_top * r_top, 0.0))
     cuts = [np.zeros_like(r0), s_top, -b]
-    for kink_m in (10_000.0, 25_000.0, 40_000.0):
+    for kink_m in (DEFAULT_OZONE_PEAK_ALTITUDE_M - DEFAULT_OZONE_HALF_WIDTH_M, DEFAULT_OZONE_PEAK_ALTITUDE_M,
+                   DEFAULT_OZONE_PEAK_ALTITUDE_M + DEFAULT_OZONE_HALF_WIDTH_M):
         r_k = atm.planet_radius + kink_m
         disc = r_k * r_k + c0                                     # r(s) = r_k at s = -b +- sqrt(disc)
         root = np.sqrt(np.maximum(disc, 0.0))

@@ -285,6 +285,14 @@ DEFAULT_OZONE_PEAK_ALTITUDE_M = 25_000.0
 DEFAULT_OZONE_HALF_WIDTH_M = 15_000.0
 
 
+def ozone_tent(altitude_m: ArrayLike, peak_altitude_m: float = DEFAULT_OZONE_PEAK_ALTITUDE_M,
+               half_width_m: float = DEFAULT_OZONE_HALF_WIDTH_M) -> np.ndarray:
+    """The ozone layer's shape: density relative to its peak, max(0, 1 - |h - h_peak| / w), dimensionless in [0, 1]
+    (Bruneton 2017); its vertical integral is w."""
+    altitude = np.asarray(altitude_m, dtype=np.float64)
+    return np.maximum(1.0 - np.abs(altitude - peak_altitude_m) / half_width_m, 0.0)
+
+
 def ozone_number_density_per_m3(altitude_m: ArrayLike, total_column_du: float = DEFAULT_OZONE_COLUMN_DU,
                                 peak_altitude_m: float = DEFAULT_OZONE_PEAK_ALTITUDE_M,
                                 half_width_m: float = DEFAULT_OZONE_HALF_WIDTH_M) -> np.ndarray:
@@ -303,9 +311,8 @@ def ozone_number_density_per_m3(altitude_m: ArrayLike, total_column_du: float = 
     if not np.isfinite(peak_altitude_m) or peak_altitude_m < half_width_m:
         raise ValueError(f"peak_altitude_m must be >= half_width_m so that the layer lies above the ground; "
                          f"got {peak_altitude_m!r} < {half_width_m!r}")
-    altitude = np.asarray(altitude_m, dtype=np.float64)
     peak_density = total_column_du * DOBSON_UNIT_PER_M2 / half_width_m
-    return peak_density * np.maximum(1.0 - np.abs(altitude - peak_altitude_m) / half_width_m, 0.0)
+    return peak_density * ozone_tent(altitude_m, peak_altitude_m, half_width_m)
 
 
 def ozone_absorption_per_m(altitude_m: ArrayLike, total_column_du: float = DEFAULT_OZONE_COLUMN_DU,
