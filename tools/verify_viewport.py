@@ -64,7 +64,9 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "tests" / "blender"))   # the tests' scene helpers (render_utils)
 sys.dont_write_bytecode = True  # Blender's Python (a chroot's 3.13 or 3.14) leaves no caches in the checkout
+sys.path.insert(0, str(REPO / "tools"))
 if bpy is not None:
+    from gui_steps import run_steps
     from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, view_direction
 
 WORLD_COLOUR = (0.05, 0.1, 0.2)
@@ -400,21 +402,13 @@ def main_in_blender(args: argparse.Namespace) -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     result = {"blender": bpy.app.version_string, "engine": args.engine, "mode": args.mode, "phases": {},
               "errors": []}
-    steps = run(args, result)
 
-    def tick():
-        try:
-            return next(steps)
-        except StopIteration:
-            pass
-        except Exception:  # noqa: BLE001  (record it, then quit: a hung GUI Blender helps nobody)
-            result["errors"].append(traceback.format_exc())
+    def finish():
         (args.out / f"{args.tag}.json").write_text(json.dumps(result, indent=1))
         print(f"VIEWPORT wrote {args.out / (args.tag + '.json')}", flush=True)
         bpy.ops.wm.quit_blender()
-        return None
 
-    bpy.app.timers.register(tick, first_interval=1.0)
+    run_steps(run(args, result), result["errors"], finish)
 
 
 # -- the table (plain Python) ---------------------------------------------------------------------------------

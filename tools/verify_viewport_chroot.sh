@@ -17,6 +17,11 @@
 # CASES (default "EEVEE:COMPOSITOR EEVEE:PER_PIXEL CYCLES:COMPOSITOR CYCLES:PER_PIXEL CYCLES:IN_RENDER"; an
 # entry ENGINE:MODE:FLAG adds --FLAG, e.g. CYCLES:COMPOSITOR:no-final-render), CASE_TIMEOUT (seconds per Blender
 # run, default 2400).
+#
+# CHECK=panel runs tools/verify_panel.py instead (the Atmosphere panel at the Properties editor's default width,
+# issue 29): for each suite and each screen width in PANEL_WIDTHS (default "1920 1280": Blender's factory layout
+# gives its Properties editor 339 and 225 px there), screenshots and the cut-text check into
+# OUT_DIR/panel_<version>_<width>/, e.g. `sudo CHECK=panel SUITES=sid tools/verify_viewport_chroot.sh`.
 
 set -euo pipefail
 
@@ -27,6 +32,8 @@ MIRROR=${MIRROR:-http://deb.debian.org/debian}
 SUITES=${SUITES:-trixie sid}
 CASES=${CASES:-EEVEE:COMPOSITOR EEVEE:PER_PIXEL CYCLES:COMPOSITOR CYCLES:PER_PIXEL CYCLES:IN_RENDER}
 CASE_TIMEOUT=${CASE_TIMEOUT:-2400}
+CHECK=${CHECK:-viewport}
+PANEL_WIDTHS=${PANEL_WIDTHS:-1920 1280}
 # python3-cattr and python3-requests: Blender 5.2's bundled extensions add-on imports them at startup.
 PACKAGES="blender xvfb xauth mesa-utils x11-apps imagemagick python3-numpy libgl1-mesa-dri python3-cattr
 python3-requests"
@@ -87,9 +94,29 @@ run_case() {   # run_case SUITE ENGINE MODE [FLAG]
     grep '^VIEWPORT' "$OUT/$tag.log" | grep -v ' poll ' | sed 's/^/   /' || true
 }
 
+run_panel() {   # run_panel SUITE WIDTH: the panel check on a screen WIDTH px wide (tall enough for the whole tab)
+    local suite=$1 width=$2 root=$CHROOTS/$1 version out
+    version=$(chroot "$root" blender --version | awk 'NR == 1 {print $2}')
+    out="$OUT/panel_${version}_${width}"
+    mkdir -p "$out"
+    echo "== panel, Blender $version, screen ${width} px wide"
+    timeout "$CASE_TIMEOUT" chroot "$root" sh -c "cd '$REPO' && xvfb-run -a -s '-screen 0 ${width}x2400x24' \
+        blender --factory-startup --python tools/verify_panel.py -- --out '$out'" > "$out/panel.log" 2>&1 \
+        || echo "   exit status $? (see $out/panel.log)"
+    grep '^PANEL' "$out/panel.log" | sed 's/^/   /' || true
+}
+
 for suite in $SUITES; do
     setup_chroot "$suite"
 done
+if [ "$CHECK" = panel ]; then
+    for suite in $SUITES; do
+        for width in $PANEL_WIDTHS; do
+            run_panel "$suite" "$width"
+        done
+    done
+    exit 0
+fi
 for suite in $SUITES; do
     for case in $CASES; do
         IFS=: read -r engine mode flag <<< "$case"

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from mathutils import Vector
 
-from ..physics.quality import LEVEL_DESCRIPTIONS, Level, SceneSummary, choose_level, nearest_cases
+from ..physics.quality import Level, SceneSummary, choose_level, level_summary, nearest_cases
 from ..plan import NOTE_IN_RENDER_FAST
 from . import facts, scene_reading
 
@@ -104,16 +104,17 @@ def resolve(scene) -> str:
 
 def _resolve(scene, settings) -> str:
     if settings.quality != "AUTO":
-        line = f"{settings.quality.capitalize()}: {LEVEL_DESCRIPTIONS[Level(settings.quality.lower())]}"
+        level = Level(settings.quality.lower())
+        summary = level_summary(level, settings.multiple_scattering, facts.plan_of(scene).mode)
+        line = f"{settings.quality.capitalize()}: {summary}"
         scene_reading.set_if_changed(settings, "status_quality", line)
         return level_of(settings)
     summary = summarize(scene)
     per_pixel = facts.plan_of(scene).mode == "PER_PIXEL"   # Balanced's Per Pixel variant is more accurate
     level, error = choose_level(summary, tolerance=settings.auto_tolerance / 100.0, per_pixel=per_pixel)
     situations = ", ".join(name.replace("_", " ") for name in nearest_cases(summary))
-    verdict = "within" if error <= settings.auto_tolerance / 100.0 else "best available, over"
-    line = (f"Auto chose {level.value.capitalize()}: expected error {100.0 * error:.1f}% ({verdict} the "
-            f"{settings.auto_tolerance:g}% tolerance) for {situations}")
+    over = "" if error <= settings.auto_tolerance / 100.0 else f", over {settings.auto_tolerance:g} %"
+    line = f"Auto chose {level.value.capitalize()}: {100.0 * error:.1f} %{over} ({situations})"
     scene_reading.set_if_changed(settings, "auto_level", level.value)
     scene_reading.set_if_changed(settings, "status_quality", line)
     return level.value

@@ -73,15 +73,37 @@ class Level(enum.Enum):
     PRECISE = "precise"
 
 
-#: One-line descriptions for the UI.
-LEVEL_DESCRIPTIONS = {
-    Level.FAST: "Constant sea-level density along the ray (Hoffman & Preetham eq. 19), single scattering; "
-                "ground-level views, about half the light of every-order scattering",
-    Level.BALANCED: "Density falling with altitude along the curved ray, in closed form, single scattering; drones, "
-                    "aircraft, distant mountains",
-    Level.PRECISE: "Scattering integrated numerically and baked into a per-frame table; with multiple scattering "
-                   "(the default) within 3 % of every-order scattering by day, 6.3 % at sunset (docs/quality.md)",
+#: Worst-ray luminance error by day (ground vista, distant range, drone, aircraft) against every scattering order,
+#: lowest and highest case, %: docs/quality.md "Against the complete reference" (``tools/bench_accuracy.py --paths
+#: 4000``). Keyed by level and whether Precise adds its multiple-scattering term.
+DAY_ERROR_PCT = {
+    (Level.FAST, False): (9, 85),
+    (Level.BALANCED, False): (5, 62),
+    (Level.PRECISE, False): (5, 62),
+    (Level.PRECISE, True): (1, 3),
 }
+#: Render time against Blender's own Sky Texture alone (its sky and no aerial perspective), the sample valley in
+#: Cycles: docs/quality.md "Cost" (``tools/bench_quality_cost.py --engines cycles --repeats 5 --decompose``).
+#: In-Render mode was not part of that bench.
+RENDER_COST_VS_SKY = {
+    (Level.FAST, "COMPOSITOR"): 1.45,
+    (Level.FAST, "PER_PIXEL"): 1.29,
+    (Level.BALANCED, "COMPOSITOR"): 2.68,
+    (Level.BALANCED, "PER_PIXEL"): 1.42,
+    (Level.PRECISE, "COMPOSITOR"): 3.73,
+    (Level.PRECISE, "PER_PIXEL"): 2.46,
+}
+
+
+def level_summary(level: Level, multiple_scattering: bool, mode: str) -> str:
+    """The panel's one plain line for a level: its measured error by day and its measured cost, e.g.
+    "1-3 % off by day, 2.5x sky cost" (the cost against Blender's own sky; left out where it was not measured)."""
+    low, high = DAY_ERROR_PCT[(level, multiple_scattering and level is Level.PRECISE)]
+    cost = RENDER_COST_VS_SKY.get((level, mode))
+    line = f"{low}-{high} % off by day"
+    return f"{line}, {cost:.1f}x sky cost" if cost is not None else line
+
+
 #: Levels with an evaluator, cheapest first (every level has one): :func:`choose_level` picks among these.
 IMPLEMENTED_LEVELS = tuple(Level)
 

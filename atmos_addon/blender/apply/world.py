@@ -92,14 +92,14 @@ def _add_lighting_branch(tree: bpy.types.NodeTree, features, background: bpy.typ
     lighting.node_tree = groups().sky_lighting.new_sky_lighting_group(features)
     lighting.label = "Atmos Sky Lighting"
     lighting_background = tree.nodes.new("ShaderNodeBackground")
-    lighting_background.label = "Atmos Sky Lighting Background"
+    lighting_background.label = "Atmos Lighting"
     lighting_background.inputs["Strength"].default_value = 1.0
     switch = tree.nodes.new("ShaderNodeLightPath")
-    switch.label = "Atmos Sky Ray Type"
+    switch.label = "Atmos Ray Type"
     mix = tree.nodes.new("ShaderNodeMixShader")
-    mix.label = "Atmos Sky and Lighting"  # the Surface slot of the World tab shows it: short, no jargon
+    mix.label = "Atmos Sky + Light"  # the World tab's Surface slot shows it (GUI 5.2.2: cut at 22 characters)
     output = tree.nodes.new("ShaderNodeOutputWorld")
-    output.label = "Atmos Sky Output (Cycles)"
+    output.label = "Atmos Output"
     output.target = "CYCLES"
     for node, tag, location in ((lighting, LIGHTING_TAG, (x - 240.0, y - 200.0)),
                                 (lighting_background, LIGHTING_BACKGROUND_TAG, (x, y - 200.0)),

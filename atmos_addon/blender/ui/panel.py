@@ -118,9 +118,9 @@ def _split(layout):
 
 
 #: Widest label text, px at Blender's 11 px interface font and scale 1, that the property-split label column shows
-#: uncut at the Properties editor's default width (about 280 px): "Top Irradiance" (78 px with ``blf``) and
-#: "Mie Anisotropy" (81 px) came out cut in GUI Blender 5.2.2 under Xvfb (issue 29).
-LABEL_WIDTH_LIMIT_PX = 75
+#: uncut at the Properties editor's default width: Blender's factory layout on a 1920 x 1080 screen gives it 339 px
+#: (region 309 px, label room about 92 px at scale 1, measured by tools/verify_panel.py in GUI Blender 5.2.2).
+LABEL_WIDTH_LIMIT_PX = 90
 #: Widest full-width line with an icon (the main panel's notes) the default width shows uncut, px.
 LINE_WIDTH_LIMIT_PX = 230
 #: The main panel's line while the effect is off.
@@ -128,13 +128,12 @@ OFF_LINE = "Off: tick the box to add the atmosphere"
 
 
 def _channels(layout, settings, name: str, label: str) -> None:
-    """A per-channel (red, green, blue) quantity as one labelled row: the label, then R, G and B fields."""
-    split = layout.split(factor=0.4)
-    split.alignment = "RIGHT"
-    split.label(text=label)
-    row = split.row(align=True)
+    """A per-channel (red, green, blue) quantity as Blender draws a vector (Location X, Y, Z): three aligned rows
+    labelled "<label> R", "G", "B", each value at full width. One row of three fields showed "0.0" for 0.0058 at the
+    default width (Blender drops digits to fit a narrow field) and, split, no value at all (GUI Blender 5.2.2)."""
+    column = layout.column(align=True)
     for index, channel in enumerate("RGB"):
-        row.prop(settings, name, index=index, text=channel)
+        column.prop(settings, name, index=index, text=f"{label} {channel}" if index == 0 else channel)
 
 
 def _active_when_on(layout, settings):
@@ -302,7 +301,8 @@ class ATMOS_PT_atmosphere_aerial(_SubPanel, bpy.types.Panel):
                 box.label(text=group_integrity.warning(name), icon="ERROR")
             box.operator("atmos.reset_groups", icon="LOOP_BACK")
         status = layout.column(align=True)
-        for line in (settings.status_built, settings.status_sun, settings.status_materials, settings.status_objects):
+        # what was built, with its node counts (status_built), goes to the report, not the panel
+        for line in (settings.status_sun, settings.status_materials, settings.status_objects):
             if line:
                 status.label(text=line)
         if len(settings.skipped_materials):
@@ -321,7 +321,7 @@ class ATMOS_PT_atmosphere_quality(_SubPanel, bpy.types.Panel):
     def draw(self, context):
         settings = _settings(context)
         layout = _active_when_on(_split(self.layout), settings)
-        layout.row().prop(settings, "render_mode", expand=True)
+        layout.prop(settings, "render_mode", text="Mode")   # a menu: expanded, its three names were cut
         layout.prop(settings, "quality")
         if settings.quality == "AUTO":
             layout.prop(settings, "auto_tolerance")
@@ -330,7 +330,8 @@ class ATMOS_PT_atmosphere_quality(_SubPanel, bpy.types.Panel):
         if settings.quality == "PRECISE" or (settings.quality == "AUTO" and settings.auto_level == "precise"):
             layout.prop(settings, "multiple_scattering")
         if settings.enabled and settings.status_quality:
-            layout.label(text=settings.status_quality)
+            for line in settings.status_quality.split(". "):   # the level's line, then In-Render's note
+                layout.label(text=line)
 
 
 class ATMOS_PT_atmosphere_look(_SubPanel, bpy.types.Panel):
