@@ -314,6 +314,17 @@ def test_the_world_surface_slot_reads_plainly(user_presets):
         for label in labels:
             assert blf.dimensions(0, label)[0] <= 115.0, label   # "Atmos Sky and Lighting" was cut
             assert not any(word in label.lower() for word in ("analytic", "table", "switch", "camera rays")), label
+        # what the slot's rows show for the nodes linked into the surface: the label, with " | socket" when the node
+        # has several outputs ("Atmos Sky Background", 124 px, showed whole; 127 px was cut)
+        tree = scene.world.node_tree
+        output = next(node for node in tree.nodes
+                      if node.bl_idname == "ShaderNodeOutputWorld" and node.is_active_output)
+        surface = output.inputs["Surface"].links[0].from_node
+        shown = [surface.label] + [
+            link.from_node.label + (f" | {link.from_socket.name}" if len(link.from_node.outputs) > 1 else "")
+            for link in tree.links if link.to_node == surface]
+        for text in shown:
+            assert blf.dimensions(0, text)[0] <= 124.0, text
 
 
 def test_sub_panels_grey_out_while_the_effect_is_off(user_presets):

@@ -95,7 +95,7 @@ def _add_lighting_branch(tree: bpy.types.NodeTree, features, background: bpy.typ
     lighting_background.label = "Atmos Lighting"
     lighting_background.inputs["Strength"].default_value = 1.0
     switch = tree.nodes.new("ShaderNodeLightPath")
-    switch.label = "Atmos Ray Type"
+    switch.label = "Atmos"   # the Surface slot shows "Atmos | Is Camera Ray" (121 px; 127 px was cut in GUI 5.2.2)
     mix = tree.nodes.new("ShaderNodeMixShader")
     mix.label = "Atmos Sky + Light"  # the World tab's Surface slot shows it (GUI 5.2.2: cut at 22 characters)
     output = tree.nodes.new("ShaderNodeOutputWorld")
