@@ -257,13 +257,13 @@ def test_every_panel_draws_for_every_builtin_preset(user_presets):
 
 def _drawn_labels(calls: list, settings) -> list[str]:
     """The texts drawn in the property-split label column: each property's label (its text, else its name;
-    booleans and expanded enums are drawn in the value column and left out) and each R/G/B row's label."""
+    booleans are drawn in the value column and left out), the R/G/B rows' "<label> R", "G", "B" included."""
     labels = []
     properties = settings.bl_rna.properties
     for call in calls:
         if call[0] == "prop" and call[1] in properties.keys():
             prop = properties[call[1]]
-            if prop.type == "BOOLEAN" or call[2] == "" or (prop.type == "ENUM" and call[1] == "render_mode"):
+            if prop.type == "BOOLEAN" or call[2] == "":   # Mode is a menu now, its label in the column
                 continue
             labels.append(call[2] if call[2] is not None else prop.name)
     return labels
