@@ -21,7 +21,9 @@ Background, so only the aerial group and its compositing remain). "fast-per-pixe
 those levels in Per Pixel mode (the materials write distance and view direction; the compositor evaluates the
 level once per pixel; the node count is the compositor group's), and with ``--decompose`` the "-aerial-only"
 variants of the levels and of their Per Pixel configurations are those configurations without the Atmos sky,
-like "fast-aerial-only".
+like "fast-aerial-only". "precise-sky-lit" and "precise-per-pixel-sky-lit" are those configurations with Cycles'
+non-camera rays relinked to the camera's Precise sky (what they saw before the Precise sky view of December 2026):
+the A/B of the lighting group.
 "off-sky-texture" is the effect off with Blender's own Sky Texture (multiple scattering in 5.0, Nishita in 4.x,
 at the valley's sun) feeding the valley world's Background: what an artist would render without Atmos, whose sky
 replaces the world; the table gives the ratio to it as well as to the plain world's "off".
@@ -84,7 +86,11 @@ def build(args: argparse.Namespace, engine: str):
 
 #: The configurations ``--decompose`` adds (see the module docstring).
 DECOMPOSED = ("fast-sky-only", "fast-aerial-only", "fast-per-pixel-aerial-only", "balanced-aerial-only",
-              "balanced-per-pixel-aerial-only", "precise-aerial-only", "precise-per-pixel-aerial-only")
+              "balanced-per-pixel-aerial-only", "precise-aerial-only", "precise-per-pixel-aerial-only",
+              "precise-sky-lit", "precise-per-pixel-sky-lit")
+#: The suffix of the configurations whose non-camera rays see the camera's Precise sky (what Atmos did before the
+#: Precise sky view: the A/B of the lighting group).
+SKY_LIT = "-sky-lit"
 #: The effect off with Blender's own Sky Texture as the world: what an artist renders without Atmos.
 SKY_TEXTURE = "off-sky-texture"
 
@@ -123,6 +129,11 @@ def configure(scene, config: str, preset: str) -> int:
             for aov in list(view_layer.aovs):
                 view_layer.aovs.remove(aov)
         return 0
+    if config.endswith(SKY_LIT):
+        tree = scene.world.node_tree
+        tagged = {n.get(TAG): n for n in tree.nodes if TAG in n.keys()}
+        mix, camera_sky = tagged["sky mix"], tagged["sky background"]
+        tree.links.new(camera_sky.outputs["Background"], mix.inputs[1])
     if config.endswith("aerial-only"):
         tree = scene.world.node_tree
         plain = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeBackground" and TAG not in n.keys())

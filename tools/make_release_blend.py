@@ -7,8 +7,10 @@ Run it from a checkout of the release to keep, with that checkout's code:
     cd /tmp/release && /path/to/.venv/bpy-5.2.3/bin/python /path/to/tools/make_release_blend.py \\
         --output /path/to/tests/blender/data/atmos_<commit>.blend
 
-Two scenes of one file, built from an empty factory file: "Compositor" (Fast level, Compositor mode, the Atmos sky)
-and "Per Pixel" (Balanced level, Per Pixel mode, 800 m up), each with emissive planes at 300 m, 3 km and 20 km
+Scenes of one file, built from an empty factory file: "Compositor" (Fast level, Compositor mode, the Atmos sky),
+"Per Pixel" (Balanced level, Per Pixel mode, 800 m up) and, with ``--precise`` (releases that have it, from
+7df8acd on), "Precise" (Precise level with multiple scattering, Compositor mode, its baked table), each with
+emissive planes at 300 m, 3 km and 20 km
 (grey 0.2, 0.5, 0.8) against the Atmos sky, and a sun lamp 40 degrees up. Each scene is rendered in Cycles
 (32 x 16 px, 1 sample, box filter: emission and the sky only, so the pixels do not depend on Cycles' sampling) and
 its pixels saved beside the file as <output stem>_<scene>.npy: what the release rendered. Save it with the oldest
@@ -61,6 +63,7 @@ def build_scene(scene, mode: str, quality: str, altitude_m: float) -> None:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", required=True, help="the .blend to write")
+    parser.add_argument("--precise", action="store_true", help="add the Precise scene")
     args = parser.parse_args(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:])
     output = Path(args.output).resolve()
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -70,8 +73,12 @@ def main() -> int:
     second = bpy.data.scenes.new("Per Pixel")
     build_scene(first, "COMPOSITOR", "FAST", 0.0)
     build_scene(second, "PER_PIXEL", "BALANCED", 800.0)
+    scenes = [first, second]
+    if args.precise:
+        scenes.append(bpy.data.scenes.new("Precise"))
+        build_scene(scenes[-1], "COMPOSITOR", "PRECISE", 0.0)
     renders = {}
-    for scene in (first, second):
+    for scene in scenes:
         renders[scene.name] = ru.render_to_array(scene)[..., :3]
     bpy.ops.wm.save_as_mainfile(filepath=str(output), compress=True)
     for name, pixels in renders.items():

@@ -281,6 +281,15 @@ class GraphBuilder:
         self._feed(node, node.inputs["Vector"], self.combine(u, v, 0.0, label=f"uv ({label})"))
         return node.outputs["Color"]
 
+    def texture(self, image: bpy.types.Image | None, u: Operand, v: Operand, *, label: str = "") -> Socket:
+        """The colour of ``image`` at texture coordinates (u, v), filtered bilinearly (Linear; edges extended) with
+        texel centres at (x + 0.5) / width: one node for four texels. Cycles only (Eevee's Linear lookup picks a
+        mipmap from screen-space derivatives, :class:`atmos_addon.nodes.precise._Bilinear`)."""
+        node = self.node("ShaderNodeTexImage", label=label, interpolation="Linear", extension="EXTEND")
+        node.image = image
+        self._feed(node, node.inputs["Vector"], self.combine(u, v, 0.0, label=f"uv ({label})"))
+        return node.outputs["Color"]
+
     def attribute(self, name: str, *, attribute_type: str = "VIEW_LAYER", output: str = "Color",
                   label: str = "") -> Socket:
         """The ``output`` socket (Color, Vector or Fac) of an Attribute node reading ``name``."""
@@ -458,6 +467,9 @@ class ChannelGraphBuilder(GraphBuilder):
         split = [self._channels(op) if _is_vector(op) else (op, op, op) for op in operands]
         return tuple(fn(*(parts[c] for parts in split)) for c in range(3))
 
+    def texture(self, image, u: Operand, v: Operand, *, label: str = "") -> tuple:
+        raise TypeError("the compositor graphs sample their table unfiltered (texel)")
+
     def texel(self, image: bpy.types.Image | None, u: Operand, v: Operand, *, label: str = "") -> tuple:
         """``image`` at per-pixel coordinates (u, v), unfiltered: an Image node (one per builder) sampled by a Map UV
         node with nearest-texel filtering (4.5: ``filter_type``; 5.0: the Interpolation input). The UV's third
@@ -605,6 +617,26 @@ class ArrayBuilder(ChannelGraphBuilder):
         column = np.clip(np.floor(np.asarray(u, np.float32) * width), 0, width - 1).astype(np.int64)
         row = np.clip(np.floor(np.asarray(v, np.float32) * height), 0, height - 1).astype(np.int64)
         texel = pixels[row, column]
+        return tuple(np.asarray(texel[..., c], dtype=np.float32) for c in range(3))
+
+    def texture(self, image, u: Operand, v: Operand, *, label: str = "") -> tuple:
+        """The image at (u, v) filtered bilinearly with extended edges (Linear), as Cycles samples it: the four
+        texels around x = u W - 1/2, y = v H - 1/2 weighted by the fractions; black where the graph has no image."""
+        pixels = None if image is None else self.images.get(getattr(image, "name", image))
+        if pixels is None:
+            zero = np.zeros(np.broadcast_shapes(np.shape(u), np.shape(v)), np.float32)
+            return (zero, zero, zero)
+        height, width = pixels.shape[:2]
+        x = np.asarray(u, np.float32) * np.float32(width) - np.float32(0.5)
+        y = np.asarray(v, np.float32) * np.float32(height) - np.float32(0.5)
+        x0, y0 = np.floor(x), np.floor(y)
+        fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+        c0, c1 = (np.clip(x0 + k, 0, width - 1).astype(np.int64) for k in (0, 1))
+        r0, r1 = (np.clip(y0 + k, 0, height - 1).astype(np.int64) for k in (0, 1))
+        rgb = pixels[..., :3].astype(np.float32)
+        low = rgb[r0, c0] * (np.float32(1) - fx) + rgb[r0, c1] * fx
+        high = rgb[r1, c0] * (np.float32(1) - fx) + rgb[r1, c1] * fx
+        texel = low * (np.float32(1) - fy) + high * fy
         return tuple(np.asarray(texel[..., c], dtype=np.float32) for c in range(3))
 
     def layout(self, *, origin: tuple[float, float] = (0.0, 0.0)) -> None:

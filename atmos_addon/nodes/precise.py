@@ -14,7 +14,8 @@ distance (m), v the unit view direction, l the unit direction to the sun:
     F_ex   = exp(-tau),  L_in = [Phi_R(nu) A_R + Phi_HG(nu, g) A_M] tau phi1(tau),  nu = v . l
 
 Within an azimuth slice the blend is bilinear in (row, col), from the four texels around the point fetched
-unfiltered (texel centres at +0.5), the same arithmetic in both engines.
+unfiltered (texel centres at +0.5), the same arithmetic in both engines. :func:`sky_view` reads the tile's sky-view
+block (the Precise sky by view direction) with Cycles' filtered lookup, for the world's non-camera rays.
 Per-frame values are scene parameters (:mod:`.parameters`): the tile's texel origin and the camera altitude
 (``atmos_precise_tile`` = (x0, y0, h_c)), the frame's largest distance and the table's top
 (``atmos_precise_scale`` = (D, top, 0)) and the image size (``atmos_precise_atlas``). When the camera or the sun
@@ -112,6 +113,50 @@ def distance_to_top(g: GraphBuilder, view_z: Socket, h_c: Socket, top: Socket, r
     return g.max(g.select(g.less_than(view_z, 0.0, label="c < 0"), down, up), 0.0, label="to the top")
 
 
+def azimuth_from_sun(g: GraphBuilder, vx: Socket, vy: Socket, sx: Socket, sy: Socket) -> Socket:
+    """The view's azimuth from the sun's, rad in 0..pi (the table is mirror-symmetric about the sun's azimuth):
+    atan2(|v x l|_z, (v . l)_xy)."""
+    cross = g.abs(g.sub(g.mul(vx, sy), g.mul(vy, sx)), label="|v x l|_z")
+    dot = g.multiply_add(vx, sx, g.mul(vy, sy), label="(v . l)_xy")
+    return g.arctan2(cross, dot, label="azimuth from the sun")
+
+
+def sky_view(g: GraphBuilder, view: Socket, sun: Socket) -> tuple[Socket, Socket]:
+    """(radiance, ground transmittance) of the frame's sky view (``physics.precise.sky_view``, sampled as
+    ``physics.precise.lighting_from_tile``): one filtered lookup each in the tile's sky-view block,
+
+        z_h = -sqrt(h_c (2 R + h_c)) / (R + h_c)                                   the horizon's zenith cosine
+        row = K + (N - 1 - K) sqrt((v_z - z_h) / (1 - z_h))        above the horizon (the sky's rows)
+              (K - 1) - (K - 1) sqrt((z_h - v_z) / (1 + z_h))      below it (the ground's K rows)
+        column = azimuth from the sun (N_s - 1) / pi
+        radiance = image(x0 + offset + 0.5 + column, y0 + 0.5 + row),   transmittance: the block's last column
+
+    (Cycles' Linear lookup; the coordinates stay within one side's texel centres, so neither the other side of the
+    horizon nor a neighbouring block bleeds in)."""
+    vx, vy, vz = g.separate(view, label="v")
+    sx, sy, _ = g.separate(sun, label="l")
+    x0, y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile (x0, y0, h_c)")
+    width, height, _ = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"), label="atlas (W, H)")
+    radius = g.attribute(parameters.PLANET_RADIUS, output="Fac")
+    ground_term = g.mul(h_c, g.multiply_add(radius, 2.0, h_c), label="h_c (2 R + h_c)")
+    horizon = g.div(g.sqrt(ground_term), g.add(radius, h_c), label="-z_h")   # minus the horizon's zenith cosine
+    above = g.add(vz, horizon, label="v_z - z_h")
+    k, n = DEFAULT_SHAPE.sky_ground_rows, ALTITUDES
+    sky_row = g.multiply_add(g.sqrt(g.div(g.max(above, 0.0), g.add(horizon, 1.0))), float(n - 1 - k), float(k),
+                             label="sky row")
+    ground_row = g.multiply_add(g.sqrt(g.div(g.max(g.neg(above), 0.0), g.sub(1.0, horizon))), float(1 - k),
+                                float(k - 1), label="ground row")
+    row = g.select(g.less_than(above, 0.0, label="below the horizon"), ground_row, sky_row, label="sky view row")
+    v = g.div(g.add(g.add(y0, 0.5), row), height, label="v (sky view)")
+    start = g.add(x0, DEFAULT_SHAPE.sky_view_offset + 0.5, label="sky view x0")
+    column = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (DEFAULT_SHAPE.sky_azimuths - 1) / math.pi,
+                   label="sky view column")
+    radiance = g.texture(table_image(), g.div(g.add(start, column), width), v, label="sky view")
+    ground = g.texture(table_image(), g.div(g.add(start, float(DEFAULT_SHAPE.sky_azimuths)), width), v,
+                       label="ground transmittance")
+    return radiance, ground
+
+
 def tile_camera(g: GraphBuilder) -> tuple[Socket, Socket, Socket]:
     """(h_c, top, R) in m: the tile's camera altitude, the table's top and the planet radius (parameters)."""
     _, _, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile h_c")
@@ -145,9 +190,7 @@ def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket, to_top: So
     else:
         row = whole_row
 
-    cross = g.abs(g.sub(g.mul(vx, sy), g.mul(vy, sx)), label="|v x l|_z")
-    dot = g.multiply_add(vx, sx, g.mul(vy, sy), label="(v . l)_xy")
-    azimuth = g.mul(g.arctan2(cross, dot), (AZIMUTHS - 1) / math.pi, label="a")
+    azimuth = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (AZIMUTHS - 1) / math.pi, label="a")
     a0 = g.min(g.floor(azimuth), float(AZIMUTHS - 2), label="a0")
     fa = g.sub(azimuth, a0, label="a - a0")
     column = g.mul(g.min(g.sqrt(g.div(s, d_max)), 1.0), float(DISTANCES - 1), label="col")

@@ -17,6 +17,14 @@ direction and mu. The sun moves nothing in the table (mu, l_z and E_sun stay in 
 needs no re-bake; a change of the atmosphere rewrites the curves' values (:func:`write_sky_table`), never the
 tree.
 
+At the Precise level the sky varies with the azimuth from the sun beyond the phase functions (the planet's shadow,
+the multiple scattering by direction), so it does not factor into curves of the elevation; there the group is the
+frame's **sky view** instead (:func:`precise_lighting_radiance`, ``physics.precise.sky_view``): the Precise sky
+tabulated per tile over the view's zenith (rows crowded at the horizon on both sides of it) and its azimuth from the
+sun, one Linear image lookup in the baked table image, plus the lit ground through its tabulated transmittance.
+Some fifty nodes and two lookups where the camera's Precise sky has about 240 nodes and ten texel fetches; the
+floor it lights within 1 % of the floor the Precise sky itself lights (``tests/blender/test_sky_sun.py``).
+
 The world (:mod:`atmos_addon.blender.apply.world`) mixes the two skies on Light Path > Is Camera Ray: Cycles skips the
 closure branch whose mix weight is 0, with its own nodes, so camera rays run the analytic sky and every
 other ray runs this one. The table holds the analytic sky to 1.2e-4 between its samples
@@ -31,11 +39,12 @@ from typing import Sequence
 import bpy
 import numpy as np
 
-from . import parameters
+from . import parameters, stamps
+from .dome import sun_direction, view_direction
+from .graph import ArrayBuilder, GraphBuilder, Socket
+from .precise import sky_view
 from .terms import phase_henyey_greenstein, phase_rayleigh
-from .graph import GraphBuilder, Socket
-from . import stamps
-from .sky import SkyFeatures, finish_radiance_group, ground, start_radiance_graph
+from .sky import SkyFeatures, ensure_radiance_output, finish_radiance_group, ground, start_radiance_graph
 
 #: Name of a new lighting group (Blender numbers further copies: one per world).
 SKY_LIGHTING_GROUP_NAME = stamps.SKY_LIGHTING.name
@@ -55,8 +64,43 @@ def table_lookup(g: GraphBuilder, u: Socket, name: str, *, label: str) -> Socket
     return node.outputs["Color"]
 
 
+def lighting_key(features: SkyFeatures) -> str:
+    """What the lighting group is built for: the dome terms (the curves' factorisation), or at the Precise level
+    the frame's sky view (its graph reads the scattering from the table, so only the ground term varies it)."""
+    return features.key if features.level == "precise" else features.dome.key
+
+
+def precise_lighting_radiance(g: GraphBuilder, features: SkyFeatures) -> Socket:
+    """The Precise level's lighting sky on any builder: the frame's sky view (``nodes.precise.sky_view``: one
+    filtered lookup) plus, with ``ground="ALBEDO"``, the lit ground albedo E_sun max(l_z, 0) / pi seen through its
+    tabulated transmittance (0 where the ray misses the ground). ``physics.precise.lighting_from_tile``."""
+    sun = sun_direction(g)
+    radiance, ground_transmittance = sky_view(g, view_direction(g), sun)
+    if features.ground == "ALBEDO":
+        _, _, sun_z = g.separate(sun, label="l")
+        radiance = g.add(radiance, ground(g, 1.0, sun_z, ground_transmittance), label="sky view + ground")
+    return radiance
+
+
+def evaluate_precise(features: SkyFeatures, parameter_values, *, view_direction, images):
+    """What the Precise lighting group computes, in numpy float32: the radiance (N, 3) along the unit
+    ``view_direction`` (N, 3); ``parameter_values`` as :func:`.sky.evaluate`, ``images`` the table's pixels by name."""
+    direction = np.asarray(view_direction, dtype=np.float64)
+    g = ArrayBuilder(parameter_values, {"incoming": -direction}, images)
+    return np.broadcast_to(g.array(precise_lighting_radiance(g, features)), direction.shape)
+
+
 def build_sky_lighting(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) -> None:
     """Clear ``tree``'s nodes and build the table sky for ``features`` (interface kept; the table is emptied)."""
+    if features.level == "precise":
+        tree.nodes.clear()
+        ensure_radiance_output(tree, "Sky radiance along the ray from the Precise sky view (no sun disk)")
+        g = GraphBuilder(tree)
+        finish_radiance_group(g, precise_lighting_radiance(g, features), stamps.SKY_LIGHTING,
+                              SkyFeatures.from_key(lighting_key(features)))
+        if TABLE_KEY in tree:
+            del tree[TABLE_KEY]
+        return
     g, ray = start_radiance_graph(tree, "Sky radiance along the ray from the table (sky and ground, no sun disk)")
     view_z, sun, mu = ray.view_z, ray.sun, ray.mu
     u = g.sqrt(g.max(view_z, 0.0), label="u = sqrt(max(v_z, 0))")
@@ -77,8 +121,8 @@ def build_sky_lighting(tree: bpy.types.ShaderNodeTree, features: SkyFeatures) ->
 
 
 def is_current(tree: bpy.types.NodeTree, features: SkyFeatures) -> bool:
-    """True if ``tree`` was built by this version for ``features`` (their dome terms: the level is not used)."""
-    return stamps.is_current(tree, stamps.SKY_LIGHTING, features.dome.key)
+    """True if ``tree`` was built by this version for ``features`` (:func:`lighting_key`)."""
+    return stamps.is_current(tree, stamps.SKY_LIGHTING, lighting_key(features))
 
 
 def new_sky_lighting_group(features: SkyFeatures) -> bpy.types.ShaderNodeTree:
@@ -135,4 +179,8 @@ def write_sky_table(tree: bpy.types.ShaderNodeTree, coordinate: Sequence[float],
 #: Nodes in the lighting group per feature key for this :data:`.stamps.SKY_LIGHTING` (group output included).
 SKY_LIGHTING_NODE_COUNTS = {"rayleigh": 18, "rayleigh+ground": 30, "rayleigh+abs": 18, "rayleigh+abs+ground": 30,
                             "rayleigh+mie": 40, "rayleigh+mie+ground": 52, "rayleigh+mie+abs": 40,
-                            "rayleigh+mie+abs+ground": 52}
+                            "rayleigh+mie+abs+ground": 52,
+                            # the Precise sky view's graph: the same for every scattering term
+                            **{f"{terms}+precise{ground}": 64 if ground else 54
+                               for terms in ("rayleigh", "rayleigh+abs", "rayleigh+mie", "rayleigh+mie+abs")
+                               for ground in ("", "+ground")}}

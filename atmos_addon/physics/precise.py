@@ -42,6 +42,10 @@ Table axes (:class:`TableShape`)
       the atmosphere (:func:`max_distance`), d beyond D clamped.
 Within one azimuth slice the shader blends (row, column) bilinearly from four unfiltered texels.
 
+The sky view (:func:`sky_view`, the tile's last columns): the Precise sky by view direction (zenith rows crowded at
+the horizon on both sides of it x azimuths from the sun), for the rays that light the scene in Cycles, read with
+one filtered lookup (:func:`lighting_from_tile`) where the camera's sky takes ten texel fetches.
+
 Sun transmittance: optical depth to space tau_i = beta_i H_i exp(-h / H_i) Ch(r / H_i, chi)
 (:mod:`.optical_depth`), with log Ch interpolated from a table in (altitude, position between the local
 horizon and the zenith) (:class:`SunTransmittanceTable`, 0.02 % of tau against direct quadrature), plus the
@@ -60,6 +64,7 @@ sun-strength unit. :func:`evaluate` reproduces the shader's float32 sampling ste
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -83,15 +88,28 @@ class TableShape:
     altitudes: int = 65
     azimuths: int = 8
     distances: int = 32
+    #: Azimuth columns of the sky-view block (:func:`sky_view`); its rows are the tile's rows.
+    sky_azimuths: int = 33
+    #: Rows of the sky-view block below the horizon (the ground's); the others are the sky's.
+    sky_ground_rows: int = 24
 
     def __post_init__(self) -> None:
-        if min(self.altitudes, self.azimuths, self.distances) < 2:
+        if min(self.altitudes, self.azimuths, self.distances, self.sky_azimuths, self.sky_ground_rows) < 2:
             raise ValueError(f"TableShape needs >= 2 samples on every axis; got {self}")
+        if self.altitudes - self.sky_ground_rows < 2:
+            raise ValueError(f"TableShape needs >= 2 sky rows in the sky view; got {self}")
+
+    @property
+    def sky_view_offset(self) -> int:
+        """First column of the sky-view block: after the extinction block (one slice) and the two in-scattering
+        blocks, px."""
+        return self.distances * (1 + 2 * self.azimuths)
 
     @property
     def width(self) -> int:
-        """Texels across one tile: the extinction block (one slice) and the two in-scattering blocks, px."""
-        return self.distances * (1 + 2 * self.azimuths)
+        """Texels across one tile: the aerial blocks, then the sky view's radiance columns and its ground
+        transmittance column, px."""
+        return self.sky_view_offset + self.sky_azimuths + 1
 
 
 #: The shape the add-on bakes (its node graph is built for it).
@@ -477,13 +495,19 @@ class Tile:
     mean_extinction: np.ndarray
     a_rayleigh: np.ndarray
     a_mie: np.ndarray
+    #: The sky view (:func:`sky_view`): radiance W/(m^2 sr), (altitudes rows, sky azimuths, 3), and the ground's
+    #: transmittance (altitudes rows, 3); None until :func:`integrate_tile` adds them.
+    sky_radiance: np.ndarray | None = None
+    sky_ground_transmittance: np.ndarray | None = None
 
     def pixels(self) -> np.ndarray:
         """The tile as image pixels (altitudes, width, 3): row = altitude, columns = the extinction block
-        (distance), then A_R and A_M, each azimuth slice * distances + distance (the add-on's atlas layout)."""
+        (distance), then A_R and A_M, each azimuth slice * distances + distance, then the sky view (row = view
+        zenith, its azimuth columns and the ground-transmittance column; the add-on's atlas layout)."""
         rows = self.shape.altitudes
         return np.concatenate([self.mean_extinction, self.a_rayleigh.reshape(rows, -1, 3),
-                               self.a_mie.reshape(rows, -1, 3)], axis=1)
+                               self.a_mie.reshape(rows, -1, 3), self.sky_radiance,
+                               self.sky_ground_transmittance[:, None, :]], axis=1)
 
 
 def _simpson_weights(n: int) -> np.ndarray:
@@ -518,7 +542,8 @@ def _cached_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: f
                  ground_albedo: tuple[float, float, float], shape: TableShape) -> Tile:
     tile = integrate_tile(atm, camera_altitude_m, sun_elevation_rad, multiple_scattering=multiple_scattering,
                           ground_albedo=ground_albedo, shape=shape)
-    for array in (tile.mean_extinction, tile.a_rayleigh, tile.a_mie):
+    for array in (tile.mean_extinction, tile.a_rayleigh, tile.a_mie, tile.sky_radiance,
+                  tile.sky_ground_transmittance):
         array.setflags(write=False)
     return tile
 
@@ -586,9 +611,106 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
         mean_extinction = np.where(d > 0.0, tau / d, local_ex)[:, 0]               # (H, D, 3)
     e_top = atm.sun_irradiance_top
     full = (shape.altitudes, shape.azimuths, shape.distances, 3)
-    return Tile(shape, r_c, d_max, np.ascontiguousarray(np.broadcast_to(mean_extinction, full[:1] + full[2:])),
+    tile = Tile(shape, r_c, d_max, np.ascontiguousarray(np.broadcast_to(mean_extinction, full[:1] + full[2:])),
                 np.ascontiguousarray(np.broadcast_to(a_r * e_top, full)),
                 np.ascontiguousarray(np.broadcast_to(a_m * e_top, full)))
+    radiance, ground_transmittance = sky_view(tile, sun_elevation_rad, atm)
+    return dataclasses.replace(tile, sky_radiance=radiance, sky_ground_transmittance=ground_transmittance)
+
+
+def horizon_cosine(camera_altitude_m: float, atm: Atmosphere) -> float:
+    """Zenith cosine of the horizon seen from altitude h_c (clamped at 0): -sqrt(h_c (2 R + h_c)) / (R + h_c)."""
+    h_c = max(float(camera_altitude_m), 0.0)
+    return -math.sqrt(h_c * (2.0 * atm.planet_radius + h_c)) / (atm.planet_radius + h_c)
+
+
+#: How far beyond the horizon the sky view's two horizon rows are evaluated (zenith cosine): each row holds its own
+#: side's ray (the ground's tangent ray, the sky's grazing one), never the other's.
+HORIZON_NUDGE = 1e-9
+
+
+def sky_view_cosines(shape: TableShape, horizon: float) -> np.ndarray:
+    """View zenith cosines of the sky view's rows for a horizon at zenith cosine ``horizon``: the first
+    ``sky_ground_rows`` K rows the ground's, from the nadir to the horizon,
+    z = z_h - (1 + z_h) ((K - 1 - j) / (K - 1))^2, the others the sky's, from the horizon to the zenith, z = z_h + (1 - z_h) ((j - K) / (N - 1 - K))^2 (crowded at
+    the horizon, where the sky changes fastest: 2e-4 apart there for 41 sky rows). The horizon is a row on both
+    sides, so a lookup never blends the ground with the sky (:func:`lighting_from_tile`)."""
+    k, n = shape.sky_ground_rows, shape.altitudes
+    ground = horizon - (1.0 + horizon) * (np.arange(k - 1, -1, -1) / (k - 1)) ** 2
+    sky = horizon + (1.0 - horizon) * (np.arange(n - k) / (n - 1 - k)) ** 2
+    return np.concatenate([ground, sky])
+
+
+def sky_view_rows(shape: TableShape, view_cos_zenith: ArrayLike, horizon, dtype: DTypeLike = np.float32):
+    """Fractional sky-view rows of view zenith cosines (the inverse of :func:`sky_view_cosines`, as the shader
+    computes it): below the horizon (K - 1) (1 - sqrt((z_h - z) / (1 + z_h))), else
+    K + (N - 1 - K) sqrt((z - z_h) / (1 - z_h))."""
+    dt = np.dtype(dtype).type
+    k, n = shape.sky_ground_rows, shape.altitudes
+    z = np.asarray(view_cos_zenith, dtype=dt)
+    z_h = dt(horizon)
+    sky = dt(k) + np.sqrt(np.maximum(z - z_h, dt(0)) / (dt(1) - z_h)) * dt(n - 1 - k)
+    ground = dt(k - 1) - np.sqrt(np.maximum(z_h - z, dt(0)) / (dt(1) + z_h)) * dt(k - 1)
+    return np.where(z < z_h, ground, sky).astype(dt)
+
+
+def sky_view(tile: Tile, sun_elevation_rad: float, atm: Atmosphere) -> tuple[np.ndarray, np.ndarray]:
+    """The tile's Precise sky tabulated by view direction, for the rays that light the scene (Cycles' non-camera
+    rays, which :func:`sky_from_tile`'s ten texel fetches and some two hundred nodes made most of the Precise
+    level's render cost): (radiance, ground transmittance).
+
+    radiance (rows, sky azimuths, 3) W/(m^2 sr): :func:`sky_from_tile`'s L_in (phase functions included, float64)
+    at the view zenith cosines :func:`sky_view_cosines` and azimuths from the sun pi k / (N - 1); ground
+    transmittance (rows, 3): F_ex where the ray meets the ground, else 0 (the lit ground's radiance is added by the
+    shader from the albedo and E_sun, so those stay parameters). Sampled bilinearly (:func:`lighting_from_tile`),
+    no sun disk (the sun lamp carries it)."""
+    shape = tile.shape
+    horizon = horizon_cosine(tile.camera_radius_m - atm.planet_radius, atm)
+    z = sky_view_cosines(shape, horizon)
+    z[shape.sky_ground_rows - 1] -= HORIZON_NUDGE
+    z[shape.sky_ground_rows] += HORIZON_NUDGE
+    z = z[:, None]
+    azimuth = np.linspace(0.0, np.pi, shape.sky_azimuths)[None, :]
+    across = np.sqrt(np.maximum(1.0 - z * z, 0.0))
+    views = np.stack(np.broadcast_arrays(across * np.cos(azimuth), across * np.sin(azimuth), z), axis=-1)
+    sun = np.array([math.cos(sun_elevation_rad), 0.0, math.sin(sun_elevation_rad)])
+    f_ex, light, hits = sky_from_tile(tile, views, sun, atm, dtype=np.float64)
+    ground_transmittance = np.where(hits[:, :1], f_ex[:, 0], 0.0)
+    return np.ascontiguousarray(light), np.ascontiguousarray(ground_transmittance)
+
+
+def _linear_lookup(block: np.ndarray, x: np.ndarray, y: np.ndarray, dtype) -> np.ndarray:
+    """``block`` (rows, columns, 3) at fractional texel coordinates (x column, y row; texel centres at whole
+    numbers), bilinear with extended edges: a linear-filtered texture lookup."""
+    dt = np.dtype(dtype).type
+    q = np.asarray(block, dtype=dt)
+    x0 = np.clip(np.floor(x), 0, q.shape[1] - 1).astype(int)
+    y0 = np.clip(np.floor(y), 0, q.shape[0] - 1).astype(int)
+    x1, y1 = np.minimum(x0 + 1, q.shape[1] - 1), np.minimum(y0 + 1, q.shape[0] - 1)
+    fx, fy = (x - np.floor(x)).astype(dt)[..., None], (y - np.floor(y)).astype(dt)[..., None]
+    low = q[y0, x0] + fx * (q[y0, x1] - q[y0, x0])
+    high = q[y1, x0] + fx * (q[y1, x1] - q[y1, x0])
+    return low + fy * (high - low)
+
+
+def lighting_from_tile(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, albedo: ArrayLike,
+                       e_sun: ArrayLike, dtype: DTypeLike = np.float32) -> np.ndarray:
+    """The sky the scene is lit by at the Precise level, radiance (..., 3) along unit ``view_dir`` (..., 3): the
+    sky view (:func:`sky_view`) sampled bilinearly at the row :func:`sky_view_rows` and the azimuth column
+    a (N - 1) / pi, plus the lit ground albedo E_sun max(l_z, 0) / pi times its transmittance; what Cycles' Linear
+    image lookup gives the lighting group (``atmos_addon.nodes.sky_lighting``). ``atm``: the tile's."""
+    dt = np.dtype(dtype).type
+    shape = tile.shape
+    v = np.asarray(view_dir, dtype=dt)
+    s = np.asarray(sun_dir, dtype=dt)
+    horizon = horizon_cosine(tile.camera_radius_m - atm.planet_radius, atm)
+    row = sky_view_rows(shape, np.clip(v[..., 2], dt(-1), dt(1)), horizon, dt)
+    cross = np.abs(v[..., 0] * s[1] - v[..., 1] * s[0])
+    azimuth = np.arctan2(cross, v[..., 0] * s[0] + v[..., 1] * s[1]) * dt((shape.sky_azimuths - 1) / np.pi)
+    light = _linear_lookup(tile.sky_radiance, azimuth, row, dt)
+    ground = _linear_lookup(tile.sky_ground_transmittance[:, None, :], np.zeros_like(row), row, dt)
+    lit = np.asarray(albedo, dtype=dt) * np.asarray(e_sun, dtype=dt) * (max(float(s[2]), 0.0) / np.pi)
+    return (light + ground * lit).astype(dt)
 
 
 def sky_radiance(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, *, camera_altitude_m: float = 0.0,

@@ -83,15 +83,15 @@ DAY_ERROR_PCT = {
     (Level.PRECISE, True): (1, 3),
 }
 #: Render time against Blender's own Sky Texture alone (its sky and no aerial perspective), the sample valley in
-#: Cycles: docs/quality.md "Cost" (``tools/bench_quality_cost.py --engines cycles --repeats 5 --decompose``).
-#: In-Render mode was not part of that bench.
+#: Cycles: docs/quality.md "Cost" (``tools/bench_quality_cost.py --engines cycles --repeats 5 --decompose``,
+#: Blender 5.2.3, December 2026, with the Precise sky view). In-Render mode was not part of that bench.
 RENDER_COST_VS_SKY = {
-    (Level.FAST, "COMPOSITOR"): 1.45,
-    (Level.FAST, "PER_PIXEL"): 1.29,
-    (Level.BALANCED, "COMPOSITOR"): 2.68,
-    (Level.BALANCED, "PER_PIXEL"): 1.42,
-    (Level.PRECISE, "COMPOSITOR"): 3.73,
-    (Level.PRECISE, "PER_PIXEL"): 2.46,
+    (Level.FAST, "COMPOSITOR"): 1.26,
+    (Level.FAST, "PER_PIXEL"): 1.08,
+    (Level.BALANCED, "COMPOSITOR"): 1.85,
+    (Level.BALANCED, "PER_PIXEL"): 1.14,
+    (Level.PRECISE, "COMPOSITOR"): 1.88,
+    (Level.PRECISE, "PER_PIXEL"): 1.27,
 }
 
 

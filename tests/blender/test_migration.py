@@ -5,7 +5,8 @@ its node-group migrations).
 ``data/atmos_addba16.blend`` was written by main at addba16 (the release before the Blender-layer redesign) with
 ``tools/make_release_blend.py``, saved by Blender 4.5.15, with the pixels that release rendered beside it: two
 scenes, Compositor mode at the Fast level and Per Pixel mode at the Balanced level, emissive planes against the
-Atmos sky. Opened with today's add-on, every Atmos node group must carry today's stamp
+Atmos sky. ``data/atmos_7df8acd.blend`` (the release before the Precise sky view, same tool with ``--precise``)
+adds a third scene at the Precise level with multiple scattering. Opened with today's add-on, every Atmos node group must carry today's stamp
 (:mod:`atmos_addon.nodes.stamps`),
 rebuilt in place (no second copy, the compositor's and materials' links kept), none may read as edited, and every
 scene must render as it did (Cycles, pixel centres: emission and sky only, no sampling noise).
@@ -25,7 +26,8 @@ from atmos_addon.nodes import registry, stamps
 import render_utils as ru
 
 DATA = Path(__file__).resolve().parent / "data"
-RELEASES = ("addba16",)
+#: The stored releases and the scenes each file holds.
+RELEASES = {"addba16": ("Compositor", "Per Pixel"), "7df8acd": ("Compositor", "Per Pixel", "Precise")}
 
 
 pytestmark = pytest.mark.usefixtures("addon")
@@ -43,7 +45,7 @@ def test_a_file_of_an_earlier_release_upgrades_in_place_and_renders_the_same(rel
     for kind, tree in managed:   # every group upgraded to today's stamp, in place: no second copy of a group
         assert tree[stamps.KIND_KEY] == kind.name and tree[stamps.VERSION_KEY] == kind.version, tree.name
         assert kind.per_world or sum(k == kind for k, _ in managed) == 1, tree.name
-    for scene_name in ("Compositor", "Per Pixel"):
+    for scene_name in RELEASES[release]:
         scene = bpy.data.scenes[scene_name]
         assert scene.atmos.enabled
         expected = np.load(DATA / f"atmos_{release}_{scene_name.lower().replace(' ', '_')}.npy")
@@ -51,6 +53,25 @@ def test_a_file_of_an_earlier_release_upgrades_in_place_and_renders_the_same(rel
         difference = float(np.max(np.abs(image - expected)))
         print(f"\n{release} {scene_name}: max abs difference to the release's render {difference:.2e}")
         assert difference <= 1e-4, scene_name
+    if "Precise" in RELEASES[release]:
+        _assert_the_precise_sky_view_came_in(bpy.data.scenes["Precise"])
+
+
+def _assert_the_precise_sky_view_came_in(scene) -> None:
+    """A Precise scene saved before the sky view (7df8acd: Cycles' non-camera rays saw the camera's Precise sky, the
+    tiles had no sky-view block) opens with its world's lighting group rebuilt for the Precise level, those rays
+    routed to it and the table re-baked with the sky view (the camera's pixels, checked above, stay the same)."""
+    from atmos_addon.blender.apply import world
+    from atmos_addon.physics.precise import DEFAULT_SHAPE
+
+    tagged = {node.get("atmos_tag"): node for node in world.tagged_nodes(scene.world)}
+    lighting = tagged[world.LIGHTING_TAG].node_tree
+    assert lighting[stamps.FEATURES_KEY].endswith("+precise+ground")
+    mix = tagged[world.MIX_TAG]
+    assert mix.inputs[1].links[0].from_node == tagged[world.LIGHTING_BACKGROUND_TAG]
+    image = bpy.data.images["Atmos Precise Table"]
+    assert tuple(image.size) == (DEFAULT_SHAPE.width, DEFAULT_SHAPE.altitudes)
+    assert [node.image for node in lighting.nodes if node.bl_idname == "ShaderNodeTexImage"] == [image, image]
 
 
 def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_path):

@@ -358,6 +358,7 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
     as the session did (max abs difference <= 1e-4); the frames differ from each other."""
     from atmos_addon.nodes import precise as precise_nodes
     from atmos_addon.nodes.parameters import PRECISE_TILE
+    from atmos_addon.physics.precise import DEFAULT_SHAPE
 
     scene = bpy.context.scene
     scene.atmos.quality = "PRECISE"
@@ -365,8 +366,7 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
     report = orchestrator.enable_effect(scene)
     assert any("baked 3 table tiles" in message for message in report.messages), report.messages
     image = bpy.data.images[precise_nodes.IMAGE_NAME]
-    assert image.packed_file is not None and tuple(image.size) == (precise_nodes.DISTANCES * (
-        1 + 2 * precise_nodes.AZIMUTHS), 3 * precise_nodes.ALTITUDES)
+    assert image.packed_file is not None and tuple(image.size) == (DEFAULT_SHAPE.width, 3 * precise_nodes.ALTITUDES)
     session = {}
     for frame in (1, 2, 3):
         scene.frame_set(frame)

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import render_utils as ru
-from atmos_addon.blender import orchestrator, scene_reading, settings_io, sun_bake
+from atmos_addon.blender import facts, orchestrator, scene_reading, settings_io, sun_bake
 from atmos_addon.blender.apply import sun_lamp, world
 from atmos_addon.physics import Atmosphere, sun_color_and_strength, sun_irradiance_ground
 from atmos_addon.physics.sky import (aerial_distance_clamped,
@@ -270,6 +270,63 @@ def test_precise_sky_matches_the_table_sampler(engine):
     print(f"\nPrecise sky {engine} (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
 
 
+def test_precise_lighting_group_matches_the_sky_view():
+    """The Precise lighting group (Cycles' non-camera rays; rendered here through a camera, as the world) against
+    ``physics.precise.lighting_from_tile`` (float32; the ground lit) and its numpy graph (``evaluate_precise``), and
+    within a few % of the Precise sky it tabulates (``sky_from_tile``) away from the horizon: a ground camera and one
+    3 km up, a noon, a low and a twilight sun. Cycles only: Eevee never runs this group."""
+    from atmos_addon.nodes import parameters
+    from atmos_addon.nodes.precise import IMAGE_NAME
+    from atmos_addon.physics.precise import lighting_from_tile, sky_from_tile
+    from atmos_addon.physics.sky import ground_radiance
+
+    scene = ru.reset_scene()
+    horizon = ru.make_camera(scene, rotation_euler=(math.radians(92.0), 0.0, math.radians(-20.0)),
+                             fov_rad=math.radians(110.0))
+    world = _sky_world(scene)
+    group = next(n for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeGroup")
+    features = SkyFeatures(level="precise")
+    group.node_tree = sky_lighting.new_sky_lighting_group(features)
+    assert len(group.node_tree.nodes) == sky_lighting.SKY_LIGHTING_NODE_COUNTS[features.key]
+    assert sky_lighting.is_current(group.node_tree, features)
+    assert not sky_lighting.is_current(group.node_tree, features.dome)
+    bpy.context.view_layer.update()
+    width, height = 24, 12
+    ru.set_engine(scene, "CYCLES", width=width, height=height)
+    directions = ru.pixel_centre_directions(horizon, width, height)
+    worst = 0.0
+    for elevation, azimuth, altitude in ((60.0, 150.0, 2.0), (8.0, 30.0, 3000.0), (-3.0, 45.0, 2.0)):
+        sun = _sun(elevation, azimuth)
+        e_sun, tile = _write_precise_sky(scene, sun, altitude)
+        image = bpy.data.images[IMAGE_NAME]
+        assert all(n.image == image for n in group.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+        assert {n.interpolation for n in group.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"} == {"Linear"}
+        rendered = ru.render_to_array(scene)[..., :3]
+        expected = lighting_from_tile(tile, directions, sun, ATMOSPHERE, ALBEDO, e_sun)
+        label = f"sun {elevation} deg, camera {altitude} m"
+        assert np.all(np.isfinite(rendered)) and np.all(rendered >= 0.0)
+        error = _relative_error(rendered, expected)
+        assert error.max() < TOLERANCE["CYCLES"], f"{label}: worst relative error {error.max():.2e}"
+        worst = max(worst, float(error.max()))
+        pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+        values = parameters.shader_parameter_values(
+            beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
+            beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
+            sun_irradiance=e_sun, metres_per_unit=1.0, ground_albedo=ALBEDO, planet_radius=ATMOSPHERE.planet_radius)
+        values.update({parameters.PRECISE_TILE: (0.0, 0.0, altitude),
+                       parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+        graph = sky_lighting.evaluate_precise(features, values, view_direction=directions.reshape(-1, 3),
+                                              images={IMAGE_NAME: pixels.reshape(image.size[1], image.size[0], 4)})
+        np.testing.assert_allclose(graph.reshape(expected.shape), expected, rtol=1e-4, atol=1e-6 * e_sun.max())
+        f_ex, light, hits = sky_from_tile(tile, directions, sun, ATMOSPHERE)
+        sky = light + hits[..., None] * ground_radiance(sun, e_sun, ALBEDO) * f_ex
+        near_horizon = np.abs(directions[..., 2]) < 0.05
+        drift = _relative_error(rendered, sky)[~near_horizon]
+        assert np.median(drift) < 0.01 and drift.max() < 0.1, f"{label}: against the sky {drift.max():.3f}"
+    print(f"\nPrecise lighting group (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
+
+
 def _world_lit_plane_scene(engine: str):
     """A white diffuse floor seen from 10 m above, lit by the world alone (no lamp)."""
     scene = ru.reset_scene()
@@ -396,9 +453,10 @@ def test_seamless_horizon(engine):
 
 
 def test_precise_level_shows_and_lights_with_the_precise_sky(addon):
-    """At the Precise level the world's sky is the Precise one for every ray in Cycles (the lighting table's dome
-    sky would light a sunset far darker than the sky the camera shows): emptying the table changes nothing, and
-    back at Fast the other rays read the table again."""
+    """At the Precise level Cycles' camera rays see the Precise sky and the other rays its sky view (the lighting
+    group rebuilt for the Precise level, its image the baked table): the floor lit by the world alone comes out
+    within 1 % of the floor lit by the Precise sky itself (the camera's Background relinked to every ray, what the
+    add-on did before the sky view), and back at Fast the lighting group is the curves' table again."""
     scene = _world_lit_plane_scene("CYCLES")
     scene.atmos.drive_sun_lamp = False
     scene.atmos.quality = "PRECISE"
@@ -409,15 +467,22 @@ def test_precise_level_shows_and_lights_with_the_precise_sky(addon):
     image = bpy.data.images["Atmos Precise Table"]
     assert all(n.image == image for n in sky.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
     mix = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.MIX_TAG)
-    assert mix.inputs[1].links[0].from_node.get("atmos_tag") == world.BACKGROUND_TAG
-    lit = ru.render_to_array(scene)[..., :3].mean(axis=(0, 1))
+    assert mix.inputs[1].links[0].from_node.get("atmos_tag") == world.LIGHTING_BACKGROUND_TAG
     lighting = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.LIGHTING_TAG)
-    empty = np.zeros((257, 3))
-    sky_lighting.write_sky_table(lighting.node_tree, np.linspace(0.0, 1.0, 257), (empty, empty, empty), "empty")
+    assert lighting.node_tree.get("atmos_features", "").endswith("+precise+ground")
+    assert [n.image for n in lighting.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"] == [image, image]
+    lit = ru.render_to_array(scene)[..., :3].mean(axis=(0, 1))
+    camera_sky = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.BACKGROUND_TAG)
+    scene.world.node_tree.links.new(camera_sky.outputs["Background"], mix.inputs[1])
+    by_the_sky = ru.render_to_array(scene)[..., :3].mean(axis=(0, 1))
     assert np.all(lit > 0.05)
-    np.testing.assert_allclose(ru.render_to_array(scene)[..., :3].mean(axis=(0, 1)), lit, rtol=1e-6)
+    np.testing.assert_allclose(lit, by_the_sky, rtol=0.01)
+    world.update_sky_lighting(scene, facts.sky_features(facts.plan_of(scene)))   # a saved file's old route: fixed
+    assert mix.inputs[1].links[0].from_node.get("atmos_tag") == world.LIGHTING_BACKGROUND_TAG
     scene.atmos.quality = "FAST"
     assert mix.inputs[1].links[0].from_node.get("atmos_tag") == world.LIGHTING_BACKGROUND_TAG
+    assert lighting.node_tree.get("atmos_features", "") == "rayleigh+mie+abs+ground"
+    assert sky_lighting.TABLE_NODES[0] in lighting.node_tree.nodes
     assert sky.node_tree.get("atmos_features", "") == "rayleigh+mie+abs+ground"
     assert "Atmos Precise Table" not in bpy.data.images
     orchestrator.disable_effect(scene)

@@ -64,7 +64,7 @@ def frame_inputs(scene) -> list[tuple[int, float, float]]:
 
 
 def _bake_key(atmosphere, albedo, multiple: bool, inputs) -> str:
-    text = repr((sorted(atmosphere.to_dict().items()), tuple(round(a, 6) for a in albedo), multiple,
+    text = repr((DEFAULT_SHAPE, sorted(atmosphere.to_dict().items()), tuple(round(a, 6) for a in albedo), multiple,
                  [(f, round(h, 3), round(e, 7)) for f, h, e in inputs]))
     return hashlib.sha1(text.encode()).hexdigest()
 
@@ -109,11 +109,13 @@ def write_tiles(tiles: list[Tile]) -> bpy.types.Image:
 
 
 def _link_image(image: bpy.types.Image) -> None:
-    """Point the image nodes of the aerial group, of the Precise sky and of the Per Pixel compositor group (those
-    built) at ``image``."""
+    """Point the image nodes of the aerial group, of the Precise sky, of the worlds' lighting groups (the Precise
+    sky view) and of the Per Pixel compositor group (those built) at ``image``."""
     groups = scene_reading.groups()
-    for name in (groups.aerial_perspective.GROUP_NAME, groups.sky.SKY_GROUP_NAME, groups.per_pixel.GROUP_NAME):
-        group = bpy.data.node_groups.get(name)
+    named = [bpy.data.node_groups.get(name) for name in (groups.aerial_perspective.GROUP_NAME,
+                                                        groups.sky.SKY_GROUP_NAME, groups.per_pixel.GROUP_NAME)]
+    lighting = [tree for tree in bpy.data.node_groups if groups.sky_lighting.is_sky_lighting_group(tree)]
+    for group in named + lighting:
         stale = [node for node in (group.nodes if group is not None else ())
                  if node.bl_idname in ("ShaderNodeTexImage", "CompositorNodeImage") and node.image != image]
         if stale:

@@ -7,7 +7,8 @@ its other nodes): seven tagged nodes are added to its tree. The analytic "Atmos 
 Output's Surface: what Eevee renders, and what Cycles' camera rays see. For Cycles a second, Cycles-target
 World Output is added: a Mix Shader on Light Path > Is Camera Ray gives camera rays that same Background and
 every other ray (light samples of the world, rays escaping after a bounce) the same sky from the world's own
-"Atmos Sky Lighting" group (:mod:`atmos_addon.nodes.sky_lighting`: a per-atmosphere table, a fraction of the cost);
+"Atmos Sky Lighting" group (:mod:`atmos_addon.nodes.sky_lighting`: a per-atmosphere table, or at the Precise level
+the frame's sky view in the baked table image; a fraction of the cost);
 Cycles skips the branch it does not pick. The link that fed Surface before is remembered (node name and socket
 identifier) and put back when the sky is removed; nothing else in the tree is touched, so the tree comes back
 exactly. :func:`sync_sky_lighting` writes the table when the atmosphere changes. A scene without a world gets a new world
@@ -230,13 +231,13 @@ def _table_key(atmosphere) -> str:
     return " ".join(f"{float(v):.9g}" for v in values)
 
 
-def _route_other_rays(world: bpy.types.World, precise: bool) -> None:
-    """What Cycles' non-camera rays see: the lighting table's Background, or at the Precise level the camera's
-    Background (the Precise sky: its azimuth-dependent table does not factor into the lighting table's curves of
-    the elevation, and a sunset lit by the dome sky would be far darker than the sky the camera shows). Relinks
-    only when the route changes."""
+def _route_other_rays(world: bpy.types.World) -> None:
+    """Cycles' non-camera rays see the lighting group's Background: the curves' dome sky, or at the Precise level
+    the frame's sky view (:func:`atmos_addon.nodes.sky_lighting.precise_lighting_radiance`). Files saved before the
+    Precise sky view routed those rays to the camera's Precise sky; they are relinked here. Relinks only when the
+    route changes."""
     mix = _tagged(world, MIX_TAG, "ShaderNodeMixShader")
-    source = _tagged(world, BACKGROUND_TAG if precise else LIGHTING_BACKGROUND_TAG, "ShaderNodeBackground")
+    source = _tagged(world, LIGHTING_BACKGROUND_TAG, "ShaderNodeBackground")
     if mix is None or source is None:
         return
     socket = mix.inputs[1]
@@ -250,13 +251,13 @@ def _lighting_tree(scene: bpy.types.Scene):
 
 
 def update_sky_lighting(scene: bpy.types.Scene, features) -> None:
-    """Rebuild the world's lighting group if stale for ``features`` (its table is then written again by
-    :func:`write_sky_lighting_table`) and, at the Precise level, route the other rays to the Precise sky
-    (:func:`_route_other_rays`). Cheap when current."""
+    """Rebuild the world's lighting group if stale for ``features`` (the dome's table is then written again by
+    :func:`write_sky_lighting_table`; the Precise one reads the frame's sky view from the baked table image) and
+    route the other rays to it (:func:`_route_other_rays`). Cheap when current."""
     tree = _lighting_tree(scene)
     if tree is None:
         return
-    _route_other_rays(scene.world, precise=features.level == "precise")
+    _route_other_rays(scene.world)
     module = groups().sky_lighting
     if module.ensure_current(tree, features) and module.TABLE_KEY in tree:
         del tree[module.TABLE_KEY]
@@ -267,9 +268,9 @@ def write_sky_lighting_table(scene: bpy.types.Scene, atmosphere) -> None:
     from ...physics.sky_table import sky_lighting_table
 
     tree = _lighting_tree(scene)
-    if tree is None:
-        return
     module = groups().sky_lighting
+    if tree is None or module.TABLE_NODES[0] not in tree.nodes:   # none, or the Precise sky view's group
+        return
     key = _table_key(atmosphere)
     if tree.get(module.TABLE_KEY) == key:
         return
