@@ -90,14 +90,15 @@ class TableShape:
     distances: int = 32
     #: Azimuth columns of the sky-view block (:func:`sky_view`); its rows are the tile's rows.
     sky_azimuths: int = 33
-    #: Rows of the sky-view block below the horizon (the ground's); the others are the sky's.
-    sky_ground_rows: int = 24
-
     def __post_init__(self) -> None:
-        if min(self.altitudes, self.azimuths, self.distances, self.sky_azimuths, self.sky_ground_rows) < 2:
-            raise ValueError(f"TableShape needs >= 2 samples on every axis; got {self}")
-        if self.altitudes - self.sky_ground_rows < 2:
-            raise ValueError(f"TableShape needs >= 2 sky rows in the sky view; got {self}")
+        if min(self.altitudes, self.azimuths, self.distances, self.sky_azimuths) < 2 or self.altitudes < 6:
+            raise ValueError(f"TableShape needs >= 2 samples on every axis (>= 6 rows); got {self}")
+
+    @property
+    def sky_ground_rows(self) -> int:
+        """Rows of the sky-view block below the horizon (the ground's, 3/8 of the rows: 24 of 65); the others are
+        the sky's."""
+        return self.altitudes * 3 // 8
 
     @property
     def sky_view_offset(self) -> int:

@@ -137,7 +137,7 @@ def test_continuous_in_distance_and_across_the_horizon():
 def test_shape_and_layout():
     assert DEFAULT_SHAPE.sky_view_offset == DEFAULT_SHAPE.distances * (1 + 2 * DEFAULT_SHAPE.azimuths)
     assert DEFAULT_SHAPE.width == DEFAULT_SHAPE.sky_view_offset + DEFAULT_SHAPE.sky_azimuths + 1
-    tile = bake_tile(EARTH, 2.0, math.radians(45.0), shape=TableShape(9, 3, 5, 4, sky_ground_rows=3))
+    tile = bake_tile(EARTH, 2.0, math.radians(45.0), shape=TableShape(9, 3, 5, 4))
     pixels = tile.pixels()
     assert pixels.shape == (9, 5 * 7 + 4 + 1, 3)
     np.testing.assert_array_equal(pixels[:, :5], tile.mean_extinction)
@@ -145,7 +145,7 @@ def test_shape_and_layout():
     np.testing.assert_array_equal(pixels[:, 5 + 15 + 10:35], tile.a_mie[:, 2])
     np.testing.assert_array_equal(pixels[:, 35:39], tile.sky_radiance)
     np.testing.assert_array_equal(pixels[:, 39], tile.sky_ground_transmittance)
-    small = TableShape(9, 3, 5, 4, sky_ground_rows=3)
+    small = TableShape(9, 3, 5, 4)
     np.testing.assert_allclose(sky_view_cosines(small, 0.0), [-1, -0.25, 0, 0, 0.04, 0.16, 0.36, 0.64, 1])
     z_h = horizon_cosine(3000.0, EARTH)
     assert z_h == pytest.approx(-math.sqrt(1.0 - (EARTH.planet_radius / (EARTH.planet_radius + 3000.0)) ** 2))
