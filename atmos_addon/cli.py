@@ -369,8 +369,9 @@ def _add_effect_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quality", choices=QUALITY_LEVELS,
                         help="accuracy level: fast (constant density, Hoffman & Preetham 2002), balanced (density "
                              "falling with altitude along the curved ray: drones, aircraft, mountains), precise "
-                             "(numerically integrated, baked per frame into a packed table image) or auto (the "
-                             "cheapest level within 2%% for the scene); default: the scene's setting")
+                             "(numerically integrated, baked into a packed table image: key tiles along a moving "
+                             "camera's or sun's path) or auto (the cheapest level within 2%% for the scene); "
+                             "default: the scene's setting")
 
 
 def build_parser() -> argparse.ArgumentParser:

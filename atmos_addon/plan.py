@@ -15,6 +15,9 @@ fallback is decided here, once, with the sentence that explains it:
 - **Level.** Fast, Balanced or Precise; Auto's last choice for Auto (made from a summary of the scene, outside the
   plan). In-Render evaluates every ray segment at the Fast level: a reflected ray does not start at the camera,
   whose altitude the Balanced graph takes from the camera ray.
+- **Key tiles.** At the Precise level a camera or sun that moves over time gets key tiles along its path (the
+  table holds several): every lookup of the aerial, sky and lighting groups then blends the frame's two keys, which
+  doubles their texel fetches; a still scene's single tile is read directly.
 - **Sky.** The Precise level's sky is its table's; every other level shows the virtual-dome sky. Cycles' rays
   other than camera rays see the world's lighting table, or at the Precise level the camera's sky (the table
   does not factor into the lighting table's elevation curves).
@@ -77,6 +80,7 @@ class SceneFacts:
     other_modes: tuple[str, ...] = ()  #: the modes the file's other enabled scenes render with
     clip_ratio: float | None = None   #: the scene camera's clip end / clip start (None: no camera)
     clip_end_m: float | None = None   #: the scene camera's clip end, m
+    key_tiles: int = 1                #: key tiles the scene's Precise table holds (> 1: a camera or sun that moves)
 
     def __post_init__(self) -> None:
         if self.render_mode not in MODES:
@@ -100,6 +104,7 @@ class Plan:
     sun_lamp: bool                   #: Atmos drives the sun lamp's colour and strength
     tables: bool                     #: the Precise level's tables are baked
     multiple_scattering: bool        #: ... with multiple scattering
+    blend: bool                      #: ... and each frame blends two key tiles (the table holds several)
     aovs: tuple[tuple[str, str], ...]  #: the view layer's Atmos AOVs
     surface_modes: tuple[str, ...]   #: the AOV modes whose outputs the shared material group holds
     notes: tuple[str, ...]           #: one sentence per fallback or warning, for the panel, the report, the CLI
@@ -114,7 +119,7 @@ class Plan:
     def aerial_key(self) -> str:
         """The aerial feature key the node groups are stamped with: "rayleigh+mie+abs", "rayleigh+balanced"..."""
         return ("rayleigh" + ("+mie" if self.mie else "") + ("+abs" if self.absorption else "")
-                + ("" if self.level == "fast" else f"+{self.level}"))
+                + ("" if self.level == "fast" else f"+{self.level}") + ("+blend" if self.blend else ""))
 
 
 def mode_for(facts: SceneFacts) -> tuple[str, str | None]:
@@ -179,6 +184,7 @@ def plan_for(facts: SceneFacts) -> Plan:
     return Plan(mode=mode, level=level, mie=facts.mie, absorption=facts.absorption, sky=facts.sky,
                 sky_level="precise" if precise else "fast", sky_ground=facts.sky_ground,
                 lighting="sky" if precise else "table", sun_lamp=facts.sun_lamp, tables=precise,
-                multiple_scattering=precise and facts.multiple_scattering, aovs=AOVS[mode],
+                multiple_scattering=precise and facts.multiple_scattering, blend=precise and facts.key_tiles > 1,
+                aovs=AOVS[mode],
                 surface_modes=tuple(sorted(aov_modes)) or ("COMPOSITOR",), notes=notes,
                 viewport=viewport_note(facts.engine, mode))

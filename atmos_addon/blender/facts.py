@@ -9,6 +9,9 @@ from __future__ import annotations
 from ..plan import Plan, SceneFacts, plan_for
 from .scene_reading import groups
 
+#: Scene property: the number of key tiles the scene's last Precise bake wrote (``apply.precise_tables``).
+KEY_TILES = "atmos_precise_key_tiles"
+
 
 def _own_facts(scene, other_modes: tuple[str, ...] = ()) -> SceneFacts:
     settings = scene.atmos
@@ -25,7 +28,7 @@ def _own_facts(scene, other_modes: tuple[str, ...] = ()) -> SceneFacts:
         absorption=any(v > 0.0 for v in settings.mie_absorption_per_km),
         sky=bool(settings.sky_enabled), sky_ground=settings.sky_ground, sun_lamp=bool(settings.drive_sun_lamp),
         multiple_scattering=bool(settings.multiple_scattering), other_modes=other_modes, clip_ratio=clip_ratio,
-        clip_end_m=clip_end_m)
+        clip_end_m=clip_end_m, key_tiles=max(int(scene.get(KEY_TILES, 1)), 1))
 
 
 def other_modes(scene) -> tuple[str, ...]:
@@ -48,11 +51,11 @@ def plan_of(scene) -> Plan:
 
 def aerial_features(plan: Plan):
     """The aerial node groups' feature set for ``plan`` (:class:`atmos_addon.nodes.terms.AerialFeatures`)."""
-    return groups().terms.AerialFeatures(mie=plan.mie, absorption=plan.absorption, level=plan.level)
+    return groups().terms.AerialFeatures(mie=plan.mie, absorption=plan.absorption, level=plan.level, blend=plan.blend)
 
 
 def sky_features(plan: Plan):
-    """The sky group's feature set for ``plan`` (:class:`atmos_addon.nodes.sky.SkyFeatures`): the plan's terms, ground and
-    sky level (the Precise table's sky at the Precise level, the virtual dome otherwise)."""
+    """The sky group's feature set for ``plan`` (:class:`atmos_addon.nodes.sky.SkyFeatures`): the plan's terms,
+    ground and sky level (the Precise table's sky at the Precise level, the virtual dome otherwise)."""
     return groups().sky.SkyFeatures(mie=plan.mie, absorption=plan.absorption, ground=plan.sky_ground,
-                                    level=plan.sky_level)
+                                    level=plan.sky_level, blend=plan.blend and plan.sky_level == "precise")

@@ -13,7 +13,7 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
-from . import group_integrity, migration, orchestrator, sun_bake, sync
+from . import facts, group_integrity, migration, orchestrator, sun_bake, sync
 from .apply import materials, precise_tables
 
 
@@ -33,12 +33,14 @@ def on_depsgraph_update(scene, depsgraph) -> None:
     if orchestrator.mode_mismatch(scene):  # the render engine or the mode changed: switch Compositor <-> In-Render
         orchestrator.enable_effect(scene)
         return
+    key_tiles = scene.get(facts.KEY_TILES)
     if sync.sun_moved(scene):
         orchestrator.update(scene)
     elif sync.note_camera(scene):   # the Precise tables follow the camera
         precise_tables.follow(scene)
     elif any(depsgraph.id_type_updated(kind) for kind in ("ACTION", "OBJECT", "SCENE")):
         sun_bake.follow(scene)   # keys edited at other frames, a parent or a target moved, the frame range changed
+    orchestrator.follow_key_tiles(scene, key_tiles)   # an animation that started or stopped: blend or not
     if depsgraph.id_type_updated("MATERIAL"):
         materials.follow_edits(depsgraph)   # a surface Cycles folds away stays opaque
     if orchestrator.note_counts(scene):

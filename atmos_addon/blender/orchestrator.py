@@ -206,11 +206,30 @@ def _drop_tables(scene) -> None:
 def _follow_tables_and_keys(scene) -> None:
     """The Precise tables and an animated sun's keys follow the values just written: baked again when their inputs
     changed (at once in the background, else shortly after the last change); tables of a level left are removed."""
+    key_tiles = scene.get(facts.KEY_TILES)
     if precise_tables.uses_precise(scene):
         precise_tables.follow(scene)
     else:
         _drop_tables(scene)
     sun_bake.follow(scene)
+    follow_key_tiles(scene, key_tiles)
+
+
+def bake_tables(scene, *, force: bool = False) -> int:
+    """Bake the Precise tables (:func:`.precise_tables.bake`) and rebuild the groups when the blend of key tiles
+    came or went with them (a camera or sun that started or stopped moving); the number of tiles baked."""
+    key_tiles = scene.get(facts.KEY_TILES)
+    baked = precise_tables.bake(scene, force=force)
+    follow_key_tiles(scene, key_tiles)
+    return baked
+
+
+def follow_key_tiles(scene, key_tiles_before) -> None:
+    """Rebuild the groups whose blend of key tiles changed with a bake (``key_tiles_before``: the scene's
+    :data:`.facts.KEY_TILES` before it). A group built without the blend over several key tiles would render each
+    frame from its first key alone; one built with it over a single tile renders that tile exactly (weight 0)."""
+    if scene.atmos.enabled and (scene.get(facts.KEY_TILES, 1) > 1) != ((key_tiles_before or 1) > 1):
+        _ensure_groups(scene)
 
 
 def update(scene) -> None:
@@ -262,7 +281,7 @@ def enable_effect(scene) -> Report:
     if scene.get(sun_bake.BAKED_KEY) is not None:
         report.messages.append(f"Animated sun: baked to keyframes for frames {scene.frame_start}-{scene.frame_end}")
     if precise_tables.uses_precise(scene):
-        precise_tables.bake(scene)   # a no-op when its inputs are those of the last bake
+        bake_tables(scene)   # a no-op when its inputs are those of the last bake
         report.messages.append(precise_tables.describe())
     else:
         _drop_tables(scene)
@@ -284,7 +303,7 @@ def change_quality(scene) -> None:
     quality_choice.resolve(scene)
     update(scene)
     if precise_tables.uses_precise(scene):
-        precise_tables.bake(scene)
+        bake_tables(scene)
 
 
 def apply_sky_state(scene) -> None:

@@ -399,8 +399,9 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
                              "views of nearby land; the cheapest graph"),
             ("BALANCED", "Balanced", "Density falling with altitude along the curved ray, in closed form: drones, "
                                      "aircraft, mountains, distant ranges; about 2.3x the nodes of Fast"),
-            ("PRECISE", "Precise", "Single scattering integrated numerically over the curved planet, baked per "
-                                   "frame into a table image packed into the file (about 0.5 s per frame to bake); "
+            ("PRECISE", "Precise", "Single scattering integrated numerically over the curved planet, baked into "
+                                   "a table image packed into the file (0.5-0.9 s per tile; a moving camera or sun "
+                                   "gets key tiles along its path, blended per frame); "
                                    "within 1 % of the reference in every bench case"),
             ("AUTO", "Auto", "Pick the cheapest level whose measured error for this scene (camera and geometry "
                              "heights, view distances, sun) stays under the tolerance; re-evaluated on Refresh"),

@@ -167,4 +167,7 @@ def describe_features(features: AerialFeatures) -> str:
 NODE_COUNTS = {"rayleigh": 47, "rayleigh+abs": 73, "rayleigh+mie": 99, "rayleigh+mie+abs": 101,
                "rayleigh+balanced": 295, "rayleigh+abs+balanced": 300, "rayleigh+mie+balanced": 325,
                "rayleigh+mie+abs+balanced": 327, "rayleigh+precise": 174, "rayleigh+abs+precise": 174,
-               "rayleigh+mie+precise": 241, "rayleigh+mie+abs+precise": 241}
+               "rayleigh+mie+precise": 241, "rayleigh+mie+abs+precise": 241,
+               # key tiles blended (an animated camera or sun): a second texel and a blend per lookup
+               "rayleigh+precise+blend": 228, "rayleigh+abs+precise+blend": 228, "rayleigh+mie+precise+blend": 327,
+               "rayleigh+mie+abs+precise+blend": 327}

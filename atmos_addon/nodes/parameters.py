@@ -57,7 +57,8 @@ SUN_OPTICAL_DEPTH_RAYLEIGH = "atmos_sun_optical_depth_rayleigh"
 SUN_OPTICAL_DEPTH_MIE = "atmos_sun_optical_depth_mie"
 #: Precise level, per frame: the table tile's texel origin in the image and the camera altitude, (x0 px, y0 px, h_c m).
 PRECISE_TILE = "atmos_precise_tile"
-#: Precise level, per frame: the table's largest distance D and its top altitude, (D m, top m, 0).
+#: Precise level, per frame: the table's largest distance D, its top altitude and the weight of the next key tile
+#: (an animated camera or sun), (D m, top m, w).
 PRECISE_SCALE = "atmos_precise_scale"
 #: Precise level: the table image's size, (width px, height px, 0).
 PRECISE_ATLAS = "atmos_precise_atlas"
@@ -131,9 +132,9 @@ def shader_parameter_values(*, beta_rayleigh: Sequence[float], beta_mie: Sequenc
     ``sun_direction`` is normalised here; ``mie_g`` is clamped to +-:data:`MAX_ABS_MIE_G`. Lengths are m,
     the sun's angular radius rad (in (0, pi/2)), the limb darkening in [0, 1]. The keyword arguments with
     defaults (Earth, the real sun) were added with the sky, the origin altitude (m) and the sun's ground optical
-    depths (capped here at :data:`MAX_SUN_OPTICAL_DEPTH`) with the Balanced level; older callers keep working. Raises ValueError
-    naming the parameter when a value is not finite, a coefficient is negative, the sun direction has zero
-    length, a length is not > 0 or an angle is out of range.
+    depths (capped here at :data:`MAX_SUN_OPTICAL_DEPTH`) with the Balanced level; older callers keep working.
+    Raises ValueError naming the parameter when a value is not finite, a coefficient is negative, the sun
+    direction has zero length, a length is not > 0 or an angle is out of range.
     """
     direction = _triple(SUN_DIRECTION, sun_direction)
     length = math.sqrt(sum(v * v for v in direction))

@@ -18,9 +18,11 @@ unfiltered (texel centres at +0.5), the same arithmetic in both engines. :func:`
 block (the Precise sky by view direction) with Cycles' filtered lookup, for the world's non-camera rays.
 Per-frame values are scene parameters (:mod:`.parameters`): the tile's texel origin and the camera altitude
 (``atmos_precise_tile`` = (x0, y0, h_c)), the frame's largest distance and the table's top
-(``atmos_precise_scale`` = (D, top, 0)) and the image size (``atmos_precise_atlas``). When the camera or the sun
-moves over time the add-on keys them per frame (constant interpolation), so a farm renders every frame from the
-packed image without Python.
+(``atmos_precise_scale`` = (D, top, w)) and the image size (``atmos_precise_atlas``). When the camera or the sun
+moves over time the image holds key tiles along the path (``physics.precise.key_tiles``) and the graph is built to
+blend each texel of the frame's key tile with the next key's, one tile height up, by the weight w (:class:`KeyBlend`);
+the add-on keys the parameters per frame (constant interpolation), so a farm renders every frame from the packed
+image without Python.
 """
 
 from __future__ import annotations
@@ -77,10 +79,11 @@ class _Bilinear:
     unfiltered and blended here. (A filtered texture lookup would do the same in Cycles, but Eevee filters with
     mipmaps chosen from screen-space derivatives, which the slice jumps of the atlas coordinates make huge.)
     The fractions are shared by every block: their offsets are whole texels. With ``whole_row`` the row is a whole
-    number (the sky's rays end on the top row or the ground's): one row, two texels per sample."""
+    number (the sky's rays end on the top row or the ground's): one row, two texels per sample. With ``blend``
+    (:func:`key_blend`) every texel is its key tile's blended with the next key tile's, one tile height up."""
 
     def __init__(self, g: GraphBuilder, x0: Socket, y0: Socket, column: Socket, row: Socket, width: Socket,
-                 height: Socket, whole_row: bool = False) -> None:
+                 height: Socket, whole_row: bool = False, blend: "KeyBlend | None" = None) -> None:
         self.g = g
         column_floor = g.floor(column, label="floor(col)")
         row_floor = row if whole_row else g.floor(row, label="floor(row)")
@@ -91,14 +94,37 @@ class _Bilinear:
         v_low = g.div(g.add(g.add(y0, 0.5), row_floor), height, label="v (row)")
         self.v = (v_low,) if whole_row else (v_low, g.add(v_low, g.div(1.0, height), label="v (row + 1)"))
         self.step_u = g.div(1.0, width, label="1 / W")
+        self.blend = blend
+        self.v_next = None if blend is None else tuple(g.add(v, blend.step_v, label="v (next key)") for v in self.v)
+
+    def _texel(self, u: Socket, index: int, label: str) -> Socket:
+        texel = _texel(self.g, u, self.v[index], label)
+        if self.blend is None:
+            return texel
+        return self.blend.mix(texel, _texel(self.g, u, self.v_next[index], f"{label}, next key"), label)
 
     def sample(self, offset: Socket | float, label: str) -> Socket:
         g = self.g
         u_low = g.div(g.add(self.x, offset), self.width, label=f"u ({label})")
         u_high = g.add(u_low, self.step_u)
-        rows = [_lerp(g, _texel(g, u_low, v, label), _texel(g, u_high, v, label), self.f_column, f"{label} row")
-                for v in self.v]
+        rows = [_lerp(g, self._texel(u_low, i, label), self._texel(u_high, i, label), self.f_column, f"{label} row")
+                for i in range(len(self.v))]
         return rows[0] if self.f_row is None else _lerp(g, rows[0], rows[1], self.f_row, label)
+
+
+class KeyBlend:
+    """The blend of a frame's two key tiles (an animated camera or sun, ``physics.precise.key_tiles``): the frame's
+    key tile at the tile origin, the next one a tile height (N_h texels) up, weight w = the z of
+    ``atmos_precise_scale``; a texel is first + w (next - first) (``physics.precise.blend_tiles``)."""
+
+    def __init__(self, g: GraphBuilder, height: Socket) -> None:
+        self.g = g
+        _, _, weight = g.separate(g.attribute(parameters.PRECISE_SCALE, output="Vector"), label="scale w")
+        self.weights = g.combine(weight, weight, weight)
+        self.step_v = g.div(float(ALTITUDES), height, label="N_h / H (next key)")
+
+    def mix(self, first: Socket, second: Socket, label: str) -> Socket:
+        return self.g.multiply_add(self.weights, self.g.sub(second, first), first, label=f"{label}, blended")
 
 
 def distance_to_top(g: GraphBuilder, view_z: Socket, h_c: Socket, top: Socket, radius: Socket) -> Socket:
@@ -121,7 +147,7 @@ def azimuth_from_sun(g: GraphBuilder, vx: Socket, vy: Socket, sx: Socket, sy: So
     return g.arctan2(cross, dot, label="azimuth from the sun")
 
 
-def sky_view(g: GraphBuilder, view: Socket, sun: Socket) -> tuple[Socket, Socket]:
+def sky_view(g: GraphBuilder, view: Socket, sun: Socket, blend: bool = False) -> tuple[Socket, Socket]:
     """(radiance, ground transmittance) of the frame's sky view (``physics.precise.sky_view``, sampled as
     ``physics.precise.lighting_from_tile``): one filtered lookup each in the tile's sky-view block,
 
@@ -132,7 +158,8 @@ def sky_view(g: GraphBuilder, view: Socket, sun: Socket) -> tuple[Socket, Socket
         radiance = image(x0 + offset + 0.5 + column, y0 + 0.5 + row),   transmittance: the block's last column
 
     (Cycles' Linear lookup; the coordinates stay within one side's texel centres, so neither the other side of the
-    horizon nor a neighbouring block bleeds in)."""
+    horizon nor a neighbouring block bleeds in). With ``blend`` each lookup is blended with the next key tile's
+    (:class:`KeyBlend`; the rows follow the frame's camera altitude)."""
     vx, vy, vz = g.separate(view, label="v")
     sx, sy, _ = g.separate(sun, label="l")
     x0, y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile (x0, y0, h_c)")
@@ -151,10 +178,17 @@ def sky_view(g: GraphBuilder, view: Socket, sun: Socket) -> tuple[Socket, Socket
     start = g.add(x0, DEFAULT_SHAPE.sky_view_offset + 0.5, label="sky view x0")
     column = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (DEFAULT_SHAPE.sky_azimuths - 1) / math.pi,
                    label="sky view column")
-    radiance = g.texture(table_image(), g.div(g.add(start, column), width), v, label="sky view")
-    ground = g.texture(table_image(), g.div(g.add(start, float(DEFAULT_SHAPE.sky_azimuths)), width), v,
-                       label="ground transmittance")
-    return radiance, ground
+    mixer = KeyBlend(g, height) if blend else None
+
+    def lookup(u: Socket, label: str) -> Socket:
+        first = g.texture(table_image(), u, v, label=label)
+        if mixer is None:
+            return first
+        return mixer.mix(first, g.texture(table_image(), u, g.add(v, mixer.step_v), label=f"{label}, next key"),
+                         label)
+
+    return (lookup(g.div(g.add(start, column), width), "sky view"),
+            lookup(g.div(g.add(start, float(DEFAULT_SHAPE.sky_azimuths)), width), "ground transmittance"))
 
 
 def tile_camera(g: GraphBuilder) -> tuple[Socket, Socket, Socket]:
@@ -169,7 +203,8 @@ def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket, to_top: So
     """(F_ex, L_in) sampled from the frame's table (module docstring), s taken at most to the top of the
     atmosphere (:func:`distance_to_top`, or ``to_top`` where the caller has it: a surface out in space shows the
     sky behind it). ``whole_row``: the table row where the caller knows it is a whole number (the sky: the top
-    row, or row 0 where the ray meets the ground), which skips the target altitude and half the texel fetches."""
+    row, or row 0 where the ray meets the ground), which skips the target altitude and half the texel fetches.
+    ``features.blend``: every texel blends the frame's two key tiles (:class:`KeyBlend`)."""
     vx, vy, vz = g.separate(view, label="v")
     sun = sun_direction(g)
     sx, sy, _ = g.separate(sun, label="l")
@@ -194,7 +229,8 @@ def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket, to_top: So
     a0 = g.min(g.floor(azimuth), float(AZIMUTHS - 2), label="a0")
     fa = g.sub(azimuth, a0, label="a - a0")
     column = g.mul(g.min(g.sqrt(g.div(s, d_max)), 1.0), float(DISTANCES - 1), label="col")
-    bilinear = _Bilinear(g, x0, y0, column, row, width, height, whole_row=whole_row is not None)
+    bilinear = _Bilinear(g, x0, y0, column, row, width, height, whole_row=whole_row is not None,
+                         blend=KeyBlend(g, height) if features.blend else None)
     slice_offset = g.mul(a0, float(DISTANCES), label="a0 N_d")
 
     extinction = bilinear.sample(0.0, "tau / s")

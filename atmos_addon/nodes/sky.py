@@ -69,35 +69,40 @@ class SkyFeatures:
     absorption: bool = True
     ground: str = "ALBEDO"
     level: str = "fast"
+    #: The Precise sky blends two key tiles (:class:`~.terms.AerialFeatures`' ``blend``).
+    blend: bool = False
 
     def __post_init__(self) -> None:
         if self.ground not in GROUND_MODES:
             raise ValueError(f"SkyFeatures.ground must be one of {GROUND_MODES}; got {self.ground!r}")
         if self.level not in SKY_LEVELS:
             raise ValueError(f"SkyFeatures.level must be one of {SKY_LEVELS}; got {self.level!r}")
+        if self.blend and self.level != "precise":
+            raise ValueError(f"SkyFeatures.blend needs the precise level; got {self.level!r}")
 
     @classmethod
     def from_key(cls, key: str) -> "SkyFeatures":
         """The features a :attr:`key` names (a stamped group's, to rebuild it as it was)."""
         tokens = set(str(key).split("+"))
         return cls(mie="mie" in tokens, absorption="abs" in tokens, ground="ALBEDO" if "ground" in tokens else "BLACK",
-                   level="precise" if "precise" in tokens else "fast")
+                   level="precise" if "precise" in tokens else "fast", blend="precise" in tokens and "blend" in tokens)
 
     @property
     def aerial(self) -> AerialFeatures:
         """The scattering terms, as the aerial group names them."""
-        return AerialFeatures(mie=self.mie, absorption=self.absorption)
+        return AerialFeatures(mie=self.mie, absorption=self.absorption, level=self.level, blend=self.blend)
 
     @property
     def key(self) -> str:
         """A stable short name stamped on the tree, e.g. "rayleigh+mie+abs+ground", "rayleigh+mie+precise+ground"."""
-        return (self.aerial.key + ("+precise" if self.level == "precise" else "")
+        terms = AerialFeatures(mie=self.mie, absorption=self.absorption).key
+        return (terms + ("+precise" if self.level == "precise" else "") + ("+blend" if self.blend else "")
                 + ("+ground" if self.ground == "ALBEDO" else ""))
 
     @property
     def dome(self) -> "SkyFeatures":
         """The same terms on the virtual dome (what the lighting table of :mod:`.sky_lighting` factorises)."""
-        return dataclasses.replace(self, level="fast")
+        return dataclasses.replace(self, level="fast", blend=False)
 
 
 # -- the quantities ------------------------------------------------------------------------------------
@@ -257,4 +262,8 @@ SKY_NODE_COUNTS = {"rayleigh": 75, "rayleigh+ground": 86, "rayleigh+abs": 100, "
                    "rayleigh+precise": 187, "rayleigh+precise+ground": 197, "rayleigh+abs+precise": 187,
                    "rayleigh+abs+precise+ground": 197, "rayleigh+mie+precise": 234,
                    "rayleigh+mie+precise+ground": 244, "rayleigh+mie+abs+precise": 234,
-                   "rayleigh+mie+abs+precise+ground": 244}
+                   "rayleigh+mie+abs+precise+ground": 244,
+                   **{f"{terms}+precise+blend{ground}": count
+                      for terms, counts in (("rayleigh", (216, 226)), ("rayleigh+abs", (216, 226)),
+                                            ("rayleigh+mie", (279, 289)), ("rayleigh+mie+abs", (279, 289)))
+                      for ground, count in zip(("", "+ground"), counts)}}

@@ -75,7 +75,7 @@ def precise_lighting_radiance(g: GraphBuilder, features: SkyFeatures) -> Socket:
     filtered lookup) plus, with ``ground="ALBEDO"``, the lit ground albedo E_sun max(l_z, 0) / pi seen through its
     tabulated transmittance (0 where the ray misses the ground). ``physics.precise.lighting_from_tile``."""
     sun = sun_direction(g)
-    radiance, ground_transmittance = sky_view(g, view_direction(g), sun)
+    radiance, ground_transmittance = sky_view(g, view_direction(g), sun, blend=features.blend)
     if features.ground == "ALBEDO":
         _, _, sun_z = g.separate(sun, label="l")
         radiance = g.add(radiance, ground(g, 1.0, sun_z, ground_transmittance), label="sky view + ground")
@@ -181,6 +181,6 @@ SKY_LIGHTING_NODE_COUNTS = {"rayleigh": 18, "rayleigh+ground": 30, "rayleigh+abs
                             "rayleigh+mie": 40, "rayleigh+mie+ground": 52, "rayleigh+mie+abs": 40,
                             "rayleigh+mie+abs+ground": 52,
                             # the Precise sky view's graph: the same for every scattering term
-                            **{f"{terms}+precise{ground}": 64 if ground else 54
+                            **{f"{terms}+precise{blend}{ground}": (64 if ground else 54) + (14 if blend else 0)
                                for terms in ("rayleigh", "rayleigh+abs", "rayleigh+mie", "rayleigh+mie+abs")
-                               for ground in ("", "+ground")}}
+                               for blend in ("", "+blend") for ground in ("", "+ground")}}

@@ -26,28 +26,35 @@ LEVELS = ("fast", "balanced", "precise")
 
 @dataclass(frozen=True)
 class AerialFeatures:
-    """What the group contains: Mie scattering (the HG phase), Mie absorption, and the quality ``level``."""
+    """What the group contains: Mie scattering (the HG phase), Mie absorption, the quality ``level`` and, at the
+    Precise level, ``blend``: each lookup blends two key tiles (a camera or sun that moves over time,
+    ``physics.precise.key_tiles``)."""
 
     mie: bool = True
     absorption: bool = True
     level: str = "fast"
+    blend: bool = False
 
     def __post_init__(self) -> None:
         if self.level not in LEVELS:
             raise ValueError(f"AerialFeatures.level must be one of {LEVELS}; got {self.level!r}")
+        if self.blend and self.level != "precise":
+            raise ValueError(f"AerialFeatures.blend needs the precise level; got {self.level!r}")
 
     @classmethod
     def from_key(cls, key: str) -> "AerialFeatures":
         """The features a :attr:`key` names (a stamped group's, to rebuild it as it was)."""
         tokens = set(str(key).split("+"))
         level = next((level for level in LEVELS if level in tokens), "fast")
-        return cls(mie="mie" in tokens, absorption="abs" in tokens, level=level)
+        return cls(mie="mie" in tokens, absorption="abs" in tokens, level=level,
+                   blend=level == "precise" and "blend" in tokens)
 
     @property
     def key(self) -> str:
-        """A stable short name, stamped on the tree: "rayleigh", "rayleigh+mie", "rayleigh+mie+abs+balanced"..."""
+        """A stable short name, stamped on the tree: "rayleigh", "rayleigh+mie", "rayleigh+mie+abs+balanced",
+        "rayleigh+mie+abs+precise+blend"..."""
         return ("rayleigh" + ("+mie" if self.mie else "") + ("+abs" if self.absorption else "")
-                + ("" if self.level == "fast" else f"+{self.level}"))
+                + ("" if self.level == "fast" else f"+{self.level}") + ("+blend" if self.blend else ""))
 
 
 # -- the quantities ------------------------------------------------------------------------------------
@@ -92,7 +99,8 @@ def transmittance_base(g: GraphBuilder, beta: Socket, k: Socket, *, label: str) 
 
 
 def transmittance(g: GraphBuilder, base: Socket, length: Socket, k: Socket, *, label: str) -> Socket:
-    """exp(-beta x) = b^(k x) per channel for a length x in m: one Gamma node (:meth:`~.graph.GraphBuilder.power_per_channel`).
+    """exp(-beta x) = b^(k x) per channel for a length x in m: one Gamma node
+    (:meth:`~.graph.GraphBuilder.power_per_channel`).
 
     k x is the largest channel's optical depth; b >= 1/e keeps every channel's base far from float32's
     underflow, and b^0 = 1 at zero length.

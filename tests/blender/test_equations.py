@@ -153,6 +153,44 @@ def test_the_precise_group_samples_the_table_as_the_core_does(addon):
     assert bpy.data.images.get(IMAGE_NAME) is not None
 
 
+def test_the_blending_precise_group_samples_two_key_tiles_as_the_core_blends_them(addon):
+    """An animated camera or sun: the graph built with ``blend`` reads the frame's key tile and the next one, a tile
+    height up in the image, and blends every texel by the weight in ``atmos_precise_scale``; that is sampling
+    ``physics.precise.blend_tiles`` (the camera's own altitude mapping the rows)."""
+    from atmos_addon.blender.apply import precise_tables
+    from atmos_addon.physics.precise import bake_tile, blend_tiles, evaluate, shared_max_distance
+
+    atm = ATMOSPHERES["clear"]
+    directions, distances = rays(3000, seed=7)
+    keys = ((2.0, 8.0), (150.0, 6.0), (400.0, 5.0))
+    d_max = shared_max_distance([h for h, _ in keys], atm)
+    tiles = [bake_tile(atm, h, math.radians(e), max_distance_m=d_max) for h, e in keys]
+    image = precise_tables.write_tiles(tiles)
+    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    for segment, weight, altitude in ((0, 0.3, 46.0), (1, 0.75, 330.0), (1, 1.0, 400.0)):
+        elevation = math.radians(keys[segment][1] + weight * (keys[segment + 1][1] - keys[segment][1]))
+        sun = np.array([0.0, math.cos(elevation), math.sin(elevation)])
+        e_sun = sun_irradiance_ground(elevation, atm)
+        origin = precise_tables.tile_origin(segment)
+        table = values(atm, sun, e_sun)
+        table.update({parameters.PRECISE_TILE: (float(origin[0]), float(origin[1]), altitude),
+                      parameters.PRECISE_SCALE: (d_max, atm.atmosphere_height, weight),
+                      parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+        f_ex, l_in = aerial_perspective.evaluate(
+            AerialFeatures(level="precise", blend=True), table, distance_units=distances, view_direction=directions,
+            images={IMAGE_NAME: pixels.reshape(image.size[1], image.size[0], 4)})
+        blended = blend_tiles(tiles[segment], tiles[segment + 1], weight, altitude, atm)
+        want_f, want_l = evaluate(blended, directions, sun, distances, atm, np.float64)
+        label = f"segment {segment} w {weight} camera {altitude} m"
+        assert_close(f_ex, want_f, e_sun, f"F_ex {label}")
+        assert_close(l_in, want_l, e_sun, f"L_in {label}", absolute=True)
+        if weight == 0.3:   # not the first key alone: the second key's texels count
+            alone_f, alone_l = evaluate(dataclasses.replace(tiles[segment], camera_radius_m=blended.camera_radius_m),
+                                        directions, sun, distances, atm, np.float64)
+            assert np.max(np.abs(alone_l - want_l)) > 10 * np.max(np.abs(l_in - want_l))
+
+
 @pytest.mark.parametrize("name", sorted(ATMOSPHERES))
 @pytest.mark.parametrize("ground", ("BLACK", "ALBEDO"))
 def test_the_sky_group_evaluates_the_cores_dome_sky(name, ground):

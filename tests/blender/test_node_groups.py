@@ -280,7 +280,8 @@ def test_features_build_only_the_terms_needed():
             hg_nodes[features.key] = sum(1 for n in tree.nodes if n.label == "Phi_HG")
             attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
             assert describe_features(features).endswith(f": {counts[features.key]} nodes")
-    assert counts == {key: count for key, count in NODE_COUNTS.items() if not key.endswith(("+balanced", "+precise"))}
+    assert counts == {key: count for key, count in NODE_COUNTS.items()
+                      if "+balanced" not in key and "+precise" not in key}
     assert hg_nodes == {"rayleigh": 0, "rayleigh+abs": 0, "rayleigh+mie": 1, "rayleigh+mie+abs": 1}
     assert counts["rayleigh"] < counts["rayleigh+abs"] < counts["rayleigh+mie"] < counts["rayleigh+mie+abs"]
     assert "atmos_beta_mie" not in attributes["rayleigh+abs"] and "atmos_mie_g" not in attributes["rayleigh"]
@@ -297,10 +298,14 @@ def test_features_build_only_the_terms_needed():
             assert describe_features(features).startswith("Balanced, ")
     for mie in (False, True):
         for absorption in (False, True):
-            features = AerialFeatures(mie=mie, absorption=absorption, level="precise")
-            tree = ensure_aerial_perspective_group(features)
-            counts[features.key] = node_count(tree)
-            attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
+            for blend in (False, True):
+                features = AerialFeatures(mie=mie, absorption=absorption, level="precise", blend=blend)
+                tree = ensure_aerial_perspective_group(features)
+                counts[features.key] = node_count(tree)
+                attributes[features.key] = {n.attribute_name for n in tree.nodes
+                                            if n.bl_idname == "ShaderNodeAttribute"}
+                textures = [n for n in tree.nodes if n.bl_idname == "ShaderNodeTexImage"]
+                assert len(textures) == (2 if blend else 1) * (20 if mie else 12), features.key   # blend: twice
     assert counts == NODE_COUNTS
     # Precise: absorption lives in the table (no extra nodes); Mie adds the HG phase and the A_M block's taps
     assert counts["rayleigh+abs+precise"] == counts["rayleigh+precise"] < counts["rayleigh+mie+precise"]

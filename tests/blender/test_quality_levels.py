@@ -151,6 +151,60 @@ def test_in_render_mode_builds_fast_segments_and_says_so():
     assert not any(key.endswith("+balanced") for key in stamped)
 
 
+def test_an_animated_sun_bakes_key_tiles_that_each_frame_blends_and_a_pan_bakes_one():
+    """A camera that pans at one altitude: one tile, no keys, no blend. A sun setting 20 -> 10 deg over 60 frames
+    (keys added after enabling: the depsgraph handler re-bakes): a key tile every 2 deg, the groups rebuilt to blend
+    two keys, every frame's key and weight at its own sun elevation. The sun's animation removed: one tile again,
+    the groups without the blend."""
+    from atmos_addon.blender import facts, scene_reading
+    from atmos_addon.nodes import precise as precise_nodes
+    from atmos_addon.nodes import stamps
+    from atmos_addon.nodes.parameters import PRECISE_SCALE, PRECISE_TILE
+
+    scene = _scene()
+    scene.frame_start, scene.frame_end = 1, 60
+    camera = scene.camera
+    for frame, x, turn in ((1, 0.0, 0.0), (60, 400.0, 1.0)):
+        camera.location.x, camera.rotation_euler.z = x, turn
+        camera.keyframe_insert("location", frame=frame)
+        camera.keyframe_insert("rotation_euler", frame=frame)
+    report = orchestrator.enable_effect(scene)
+    assert any("baked 1 table tile " in message for message in report.messages), report.messages
+    assert scene[facts.KEY_TILES] == 1 and not facts.plan_of(scene).blend
+
+    def blends() -> set[bool]:
+        return {"+blend" in bpy.data.node_groups[kind.name][stamps.FEATURES_KEY]
+                for kind in (stamps.AERIAL, stamps.SKY)}
+
+    assert blends() == {False}
+    keyed = {c.data_path for c in scene.animation_data.action.fcurves} if scene.animation_data else set()
+    assert not any(PRECISE_TILE in path for path in keyed), "nothing changes over the range: nothing keyed"
+
+    sun = bpy.data.objects["Sun"]
+    for frame, angle in ((1, 70.0), (60, 80.0)):
+        sun.rotation_euler.x = math.radians(angle)
+        sun.keyframe_insert("rotation_euler", frame=frame)
+    bpy.context.view_layer.update()                          # the handler re-bakes the sun and the tables
+    tiles = scene[facts.KEY_TILES]
+    assert tiles in (6, 7), tiles                            # 20, 18, ..., 10 deg (and the last frame's rest)
+    image = bpy.data.images[precise_nodes.IMAGE_NAME]
+    assert image.size[1] == tiles * precise_nodes.ALTITUDES
+    assert blends() == {True} and facts.plan_of(scene).blend
+    for frame in (1, 17, 30, 44, 60):
+        scene.frame_set(frame)
+        direction, _ = scene_reading.sun_direction(scene)
+        elevation = math.degrees(math.asin(direction[2]))
+        position = scene[PRECISE_TILE][1] / precise_nodes.ALTITUDES + scene[PRECISE_SCALE][2]
+        assert position == pytest.approx((20.0 - elevation) / 2.0, abs=2e-3), (frame, elevation, position)
+        assert scene[PRECISE_TILE][2] == pytest.approx(2.0)
+
+    sun.animation_data_clear()
+    bpy.context.view_layer.update()
+    orchestrator.refresh_effect(scene)
+    assert scene[facts.KEY_TILES] == 1 and blends() == {False}
+    assert bpy.data.images[precise_nodes.IMAGE_NAME].size[1] == precise_nodes.ALTITUDES
+
+
 def test_precise_bakes_follows_the_sun_and_camera_and_cleans_up():
     """Precise: one tile baked and packed, the group's image nodes point at it; moving the sun or the camera
     re-bakes (a still scene), an unrelated slider does not; leaving Precise or disabling removes the image and

@@ -128,7 +128,7 @@ def user_part(material) -> tuple:
     ours = {node.name for node in materials.atmos_nodes(material)}
     nodes, links = snapshot(material.node_tree)
     return ([n for n in nodes if n[0] not in ours],
-            [l for l in links if l[0] not in ours and l[2] not in ours])
+            [k for k in links if k[0] not in ours and k[2] not in ours])
 
 
 def compositor_state(scene) -> tuple:
@@ -353,11 +353,12 @@ def _three_frames_of_a_setting_sun(scene, *, climbing_camera: bool) -> None:
 
 
 def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Path) -> None:
-    """Precise with a camera climbing 0 -> 3 km and a sun setting over 3 frames: one table tile per frame in
-    the packed image, the tile parameters keyed (constant), and a process without the add-on renders every frame
-    as the session did (max abs difference <= 1e-4); the frames differ from each other."""
+    """Precise with a camera climbing 0 -> 3 km and a sun setting over 3 frames: each frame moves more than a key
+    step, so each is a key tile in the packed image, the groups blend two keys by the keyed weight (frame 3 is the
+    second segment's end: weight 1), and a process without the add-on renders every frame as the session did (max
+    abs difference <= 1e-4); the frames differ from each other."""
     from atmos_addon.nodes import precise as precise_nodes
-    from atmos_addon.nodes.parameters import PRECISE_TILE
+    from atmos_addon.nodes.parameters import PRECISE_SCALE, PRECISE_TILE
     from atmos_addon.physics.precise import DEFAULT_SHAPE
 
     scene = bpy.context.scene
@@ -368,9 +369,13 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
     image = bpy.data.images[precise_nodes.IMAGE_NAME]
     assert image.packed_file is not None and tuple(image.size) == (DEFAULT_SHAPE.width, 3 * precise_nodes.ALTITUDES)
     session = {}
-    for frame in (1, 2, 3):
+    from atmos_addon.nodes import stamps
+    for kind in (stamps.AERIAL, stamps.SKY):   # both read two keys per lookup
+        assert "+blend" in bpy.data.node_groups[kind.name][stamps.FEATURES_KEY], kind.name
+    for frame, row, weight in ((1, 0, 0.0), (2, 1, 0.0), (3, 1, 1.0)):
         scene.frame_set(frame)
-        assert scene[PRECISE_TILE][1] == (frame - 1) * precise_nodes.ALTITUDES
+        assert scene[PRECISE_TILE][1] == row * precise_nodes.ALTITUDES
+        assert scene[PRECISE_SCALE][2] == weight
         session[frame] = render_utils.render_to_array(scene)
     assert np.max(np.abs(session[1] - session[3])) > 1e-2
     _assert_farm_renders_frames_as_the_session(tmp_path, session, (1, 3))

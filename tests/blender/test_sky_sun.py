@@ -8,6 +8,7 @@ Eevee to 1.5 %, relative to max(|expected|, 1e-4). Pixels within 1.5 degrees of 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import subprocess
@@ -225,13 +226,58 @@ def test_precise_sky_group_counts():
     for mie in (False, True):
         for absorption in (False, True):
             for ground in ("ALBEDO", "BLACK"):
-                features = SkyFeatures(mie, absorption, ground, level="precise")
-                tree = ensure_sky_group(features)
-                assert len(tree.nodes) == SKY_NODE_COUNTS[features.key]
-                assert sum(n.bl_idname == "ShaderNodeTexImage" for n in tree.nodes) == (10 if mie else 6)  # whole rows
+                for blend in (False, True):
+                    features = SkyFeatures(mie, absorption, ground, level="precise", blend=blend)
+                    tree = ensure_sky_group(features)
+                    assert len(tree.nodes) == SKY_NODE_COUNTS[features.key]
+                    fetches = (2 if blend else 1) * (10 if mie else 6)   # whole rows; blended: each twice
+                    assert sum(n.bl_idname == "ShaderNodeTexImage" for n in tree.nodes) == fetches
+                    assert SkyFeatures.from_key(features.key) == features
     assert features.dome == SkyFeatures(mie, absorption, ground)
     with pytest.raises(ValueError):
         SkyFeatures(level="balanced")
+    with pytest.raises(ValueError):
+        SkyFeatures(blend=True)   # only the Precise sky reads key tiles
+
+
+def test_the_blending_precise_lighting_group_samples_two_key_tiles_as_the_core_blends_them():
+    """The lighting group built with ``blend`` (an animated camera or sun): its numpy graph on a two-key image
+    against ``physics.precise.lighting_from_tile`` of ``blend_tiles`` (the rows at the frame's camera altitude)."""
+    from atmos_addon.blender.apply import precise_tables
+    from atmos_addon.nodes import parameters
+    from atmos_addon.nodes.precise import IMAGE_NAME
+    from atmos_addon.physics.precise import bake_tile, blend_tiles, lighting_from_tile, shared_max_distance
+
+    ru.reset_scene()
+    features = SkyFeatures(level="precise", blend=True)
+    group = sky_lighting.new_sky_lighting_group(features)
+    assert len(group.nodes) == sky_lighting.SKY_LIGHTING_NODE_COUNTS[features.key]
+    assert sum(n.bl_idname == "ShaderNodeTexImage" for n in group.nodes) == 4
+    d_max = shared_max_distance([2.0, 300.0], ATMOSPHERE)
+    keys = [bake_tile(ATMOSPHERE, h, math.radians(e), max_distance_m=d_max) for h, e in ((2.0, 6.0), (300.0, 5.0))]
+    image = precise_tables.write_tiles(keys)
+    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    directions = np.random.default_rng(4).normal(size=(2000, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    weight, altitude = 0.4, 120.0
+    sun = _sun(5.6, 70.0)
+    e_sun = ATMOSPHERE.sun_irradiance_top * 0.5
+    values = parameters.shader_parameter_values(
+        beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
+        beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
+        sun_irradiance=e_sun, metres_per_unit=1.0, ground_albedo=ALBEDO, planet_radius=ATMOSPHERE.planet_radius)
+    values.update({parameters.PRECISE_TILE: (0.0, 0.0, altitude),
+                   parameters.PRECISE_SCALE: (d_max, ATMOSPHERE.atmosphere_height, weight),
+                   parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+    graph = sky_lighting.evaluate_precise(features, values, view_direction=directions,
+                                          images={IMAGE_NAME: pixels.reshape(image.size[1], image.size[0], 4)})
+    blended = blend_tiles(keys[0], keys[1], weight, altitude, ATMOSPHERE)
+    expected = lighting_from_tile(blended, directions, sun, ATMOSPHERE, ALBEDO, e_sun)
+    np.testing.assert_allclose(graph, expected, rtol=1e-4, atol=1e-6 * np.max(e_sun))
+    first = lighting_from_tile(dataclasses.replace(keys[0], camera_radius_m=blended.camera_radius_m), directions,
+                               sun, ATMOSPHERE, ALBEDO, e_sun)
+    assert np.max(np.abs(first - expected)) > 100 * np.max(np.abs(graph - expected))   # the second key counts
 
 
 @pytest.mark.parametrize("engine", ru.ENGINES)
@@ -548,8 +594,8 @@ def _world_state(scene):
         return None
     tree = sky_world.node_tree
     nodes = sorted((n.name, n.bl_idname, tuple(n.location)) for n in tree.nodes)
-    links = sorted((l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier)
-                   for l in tree.links)
+    links = sorted((k.from_node.name, k.from_socket.identifier, k.to_node.name, k.to_socket.identifier)
+                   for k in tree.links)
     return sky_world.name, nodes, links, sky_world.cycles.sampling_method, sky_world.cycles.sample_map_resolution
 
 

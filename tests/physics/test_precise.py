@@ -8,10 +8,12 @@ import pytest
 
 from atmos_addon.physics import Atmosphere
 from atmos_addon.physics.optical_depth import optical_depth_to_space
-from atmos_addon.physics.precise import (DEFAULT_SHAPE, MultipleScatteringTable, SunTransmittanceTable, TableShape,
-                                         atmosphere_tables, bake_tile, distance_to_top, evaluate, lighting_from_tile,
-                                         horizon_cosine, max_distance, sky_view_cosines, sky_view_rows,
-                                         sky_from_tile, sky_path_length, sky_radiance, target_altitude)
+from atmos_addon.physics.precise import (ALTITUDE_SCALE_M, ALTITUDE_STEP, DEFAULT_SHAPE, MultipleScatteringTable,
+                                         SunTransmittanceTable, TableShape, atmosphere_tables, bake_tile,
+                                         blend_tiles, distance_to_top, evaluate, horizon_cosine, key_tiles,
+                                         lighting_from_tile, max_distance, mid_step_error, path_coordinates,
+                                         shared_max_distance, sky_view_cosines, sky_view_rows, sky_from_tile,
+                                         sky_path_length, sky_radiance, target_altitude)
 from atmos_addon.physics.sky import dome_distance_approx
 from atmos_addon.physics.sky import sky_radiance as dome_sky_radiance
 from atmos_addon.physics.sun import sun_irradiance_ground
@@ -401,3 +403,64 @@ def test_the_sky_view_lights_as_the_precise_sky(preset):
         off_sun = np.degrees(np.arccos(np.clip(views @ sun, -1.0, 1.0))) > 3.0
         relative = np.abs(table - exact)[off_sun] / np.maximum(exact[off_sun], 1e-30)
         assert np.median(relative) < 0.005, f"{label}: median radiance error {np.median(relative):.4f}"
+
+
+# -- an animated camera or sun: key tiles ----------------------------------------------------------------------
+
+
+def test_key_tiles_of_a_sunset_are_one_step_apart_and_each_frame_blends_to_its_own_inputs():
+    elevations = np.radians(np.linspace(60.0, -4.0, 250))
+    altitudes = np.full(250, 2.0)
+    path = key_tiles(altitudes, elevations)
+    # one key per 2 deg from 60 to 10, per 1 deg to 3, per 0.5 deg to -4, the first, and the last where the steps
+    # leave a rest: 25 + 7 + 14 + 1 (+ 1)
+    assert len(path.keys) in (47, 48)
+    coordinates = path_coordinates(*np.array(path.keys).T)
+    steps = np.abs(np.diff(coordinates, axis=0)).max(axis=1)
+    assert np.allclose(steps[:-1], 1.0, atol=0.05) and 0.0 < steps[-1] <= 1.05   # (the warp bends at 10 and 3 deg)
+    assert np.allclose(np.degrees([e for _, e in path.keys[:3]]), [60.0, 58.0, 56.0])
+    frames = path_coordinates(altitudes, elevations)
+    for i, (segment, weight) in enumerate(zip(path.segments, path.weights)):
+        first, second = coordinates[segment], coordinates[segment + 1]
+        assert np.allclose(first + weight * (second - first), frames[i], atol=1e-9), i
+    assert path.weights[0] == 0.0 and path.segments[-1] == len(path.keys) - 2 and path.weights[-1] == 1.0
+
+
+def test_key_tiles_of_a_pan_a_climb_a_turn_and_a_jump():
+    # a camera panning at one altitude under a still sun: one tile, nothing to blend
+    pan = key_tiles(np.full(100, 30.0), np.full(100, 0.4))
+    assert pan.keys == ((30.0, 0.4),) and set(pan.weights) == {0.0} and set(pan.segments) == {0}
+    # a drone climbing 0 -> 3 km: keys a step of ln(1 + h / 300 m) apart
+    climb = key_tiles(np.linspace(0.0, 3000.0, 200), np.full(200, 0.3))
+    assert len(climb.keys) == math.ceil(math.log1p(3000.0 / ALTITUDE_SCALE_M) / ALTITUDE_STEP) + 1
+    # a sun that rises 10 -> 20 deg and sets again: a key where it turns, so no frame is further than half a step
+    # from what it blends
+    turn = key_tiles(np.zeros(101), np.radians(10.0 + 10.0 * np.sin(np.linspace(0.0, np.pi, 101))))
+    assert any(abs(math.degrees(e) - 20.0) < 1e-9 for _, e in turn.keys)
+    # a sun that jumps further than a step from one frame to the next: its frames are the keys
+    jump = key_tiles(np.zeros(3), np.radians([10.0, 30.0, 10.0]))
+    assert [round(math.degrees(e), 6) for _, e in jump.keys] == [10.0, 30.0, 10.0]
+    assert jump.segments == (0, 1, 1) and jump.weights == (0.0, 0.0, 1.0)
+    # at most max_keys: coarser steps
+    few = key_tiles(np.full(250, 2.0), np.radians(np.linspace(60.0, -4.0, 250)), max_keys=20)
+    assert len(few.keys) <= 20 and few.step > 1.0
+
+
+def test_blended_key_tiles_follow_the_tile_baked_between_them():
+    """Half way between two key tiles (the worst place), the blend against the tile baked there: relative luminance
+    error, median and 99th percentile (tools/measure_key_tiles.py prints the whole table)."""
+    first = bake_tile(EARTH, 2.0, math.radians(20.0), max_distance_m=shared_max_distance([2.0, 400.0], EARTH))
+    second = bake_tile(EARTH, 400.0, math.radians(18.0), max_distance_m=first.max_distance_m)
+    same = blend_tiles(first, second, 0.0, 2.0, EARTH)
+    assert np.array_equal(same.a_rayleigh, first.a_rayleigh) and np.array_equal(same.sky_radiance, first.sky_radiance)
+    assert blend_tiles(first, second, 1.0, 400.0, EARTH).camera_radius_m == second.camera_radius_m
+    with pytest.raises(ValueError):
+        blend_tiles(first, bake_tile(EARTH, 2.0, math.radians(18.0)), 0.5, 200.0, EARTH)   # its own D
+    for first_key, second_key, median, high in (((2.0, 20.0), (2.0, 18.0), 0.002, 0.005),
+                                                ((2.0, 6.0), (2.0, 5.0), 0.003, 0.005),
+                                                ((2.0, 1.5), (2.0, 1.0), 0.003, 0.03),
+                                                ((300.0, 5.0), (570.0, 5.0), 0.003, 0.015)):
+        error = mid_step_error(EARTH, (first_key[0], math.radians(first_key[1])),
+                               (second_key[0], math.radians(second_key[1])), rays=1500)
+        for name, (got_median, got_high) in error.items():
+            assert got_median < median and got_high < high, (first_key, second_key, name, error)

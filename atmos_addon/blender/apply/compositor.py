@@ -192,7 +192,8 @@ def _drive_parameters(node, scene) -> None:
     animated camera. Existing drivers are reset in place (a rebuilt group keeps its sockets' drivers).
     """
     per_pixel = nodes.per_pixel
-    precise = str(node.node_tree.get(per_pixel.FEATURES_KEY, "")).endswith("+precise")
+    key = str(node.node_tree.get(per_pixel.FEATURES_KEY, ""))
+    precise = nodes.AerialFeatures.from_key(key).level == "precise"   # "...+precise" or "...+precise+blend"
     sockets = per_pixel.PARAMETER_SOCKETS + (per_pixel.PRECISE_SOCKETS if precise else ())
     targets = [(node.inputs[socket_name], index if size > 1 else None,
                 f'["{name}"][{index}]' if size > 1 else f'["{name}"]')

@@ -1,13 +1,17 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The Precise level's baked tables: one tile per frame in one float image packed into the .blend.
+"""The Precise level's baked tables: the tiles of the scene's camera altitudes and sun elevations in one float image
+packed into the .blend.
 
 A tile (``physics.precise.bake_tile``) depends on the atmosphere, the camera's altitude and the sun's elevation.
-:func:`bake` integrates one tile when neither the camera nor the sun moves over time, else one per frame of the
-scene's range, and writes them into the "Atmos Precise Table" image: tiles stacked upward, a new column every
-:data:`TILES_PER_COLUMN` tiles (GPU textures stop at 16384 texels). The frame's tile origin, camera altitude and
-largest distance are scene parameters; with several tiles they are keyed per frame with constant interpolation,
-so the render (a farm's included) picks each frame's tile without Python. The image is packed, so the file
-carries it. A bake is skipped while its inputs are unchanged (a key stored on the image).
+:func:`bake` integrates one tile when neither moves over the frame range (a camera that pans at one altitude
+included), else the key tiles of their path (``physics.precise.key_tiles``: a key every step of the sun's elevation
+or the camera's altitude, 47 for a sun setting from 60 to -4 deg, however many frames), and writes them into the
+"Atmos Precise Table" image: tiles stacked upward in path order (at most :data:`TILES_PER_COLUMN`: GPU textures stop
+at 16384 texels). The frame's tile origin, camera altitude, largest distance and blend weight are scene parameters;
+when they change over the range they are keyed per frame with constant interpolation, so the render (a farm's
+included) picks each frame's two key tiles and blends them without Python (``nodes.precise.KeyBlend``; the plan
+builds the blend where the table holds more than one key tile: :data:`.facts.KEY_TILES`). The image is packed, so
+the file carries it. A bake is skipped while its inputs are unchanged (a key stored on the image).
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ import math
 import bpy
 import numpy as np
 
-from ...physics.precise import DEFAULT_SHAPE, Tile, bake_tile
+from ...physics.precise import DEFAULT_SHAPE, Tile, bake_tile, key_tiles, shared_max_distance
 from .. import facts, group_integrity, scene_reading
 from ..debounce import Debounced
 from . import compositor
@@ -29,6 +33,9 @@ MAX_TEXTURE_SIZE = 16384
 TILES_PER_COLUMN = MAX_TEXTURE_SIZE // DEFAULT_SHAPE.altitudes
 _KEY = "atmos_bake_key"
 _TILES = "atmos_tiles"
+#: Bumped when the same inputs bake a different table (2: key tiles blended instead of a tile per frame), so a file
+#: saved before re-bakes on opening.
+_LAYOUT = 2
 
 
 def _camera_altitude_m(scene, metres_per_unit: float) -> float:
@@ -64,7 +71,8 @@ def frame_inputs(scene) -> list[tuple[int, float, float]]:
 
 
 def _bake_key(atmosphere, albedo, multiple: bool, inputs) -> str:
-    text = repr((DEFAULT_SHAPE, sorted(atmosphere.to_dict().items()), tuple(round(a, 6) for a in albedo), multiple,
+    text = repr((_LAYOUT, DEFAULT_SHAPE, sorted(atmosphere.to_dict().items()), tuple(round(a, 6) for a in albedo),
+                 multiple,
                  [(f, round(h, 3), round(e, 7)) for f, h, e in inputs]))
     return hashlib.sha1(text.encode()).hexdigest()
 
@@ -125,10 +133,10 @@ def _link_image(image: bpy.types.Image) -> None:
 
 
 def _write_parameters(scene, origin: tuple[int, int], camera_altitude_m: float, tile: Tile, top_m: float,
-                      size: tuple[int, int]) -> None:
+                      size: tuple[int, int], weight: float = 0.0) -> None:
     parameters = scene_reading.groups().parameters
     scene[parameters.PRECISE_TILE] = (float(origin[0]), float(origin[1]), max(float(camera_altitude_m), 0.0))
-    scene[parameters.PRECISE_SCALE] = (float(tile.max_distance_m), float(top_m), 0.0)
+    scene[parameters.PRECISE_SCALE] = (float(tile.max_distance_m), float(top_m), float(weight))
     scene[parameters.PRECISE_ATLAS] = (float(size[0]), float(size[1]), 0.0)
 
 
@@ -145,7 +153,8 @@ def _clear_keys(scene) -> None:
 
 def bake(scene, *, force: bool = False) -> int:
     """Bake the scene's tables if their inputs changed (or ``force``); returns the number of tiles baked (0: the
-    image was current). Writes and, with several tiles, keys the Precise parameters."""
+    image was current). Writes and, when they change over the frame range, keys the Precise parameters, and records
+    the number of key tiles (:data:`.facts.KEY_TILES`, which the plan's blend follows)."""
     settings = scene.atmos
     atmosphere = scene_reading.atmosphere_of(scene)
     albedo = tuple(float(a) for a in settings.ground_albedo)
@@ -158,21 +167,26 @@ def bake(scene, *, force: bool = False) -> int:
         _link_image(image)
         _revalidate_drivers(scene)
         return 0
-    tiles = [bake_tile(atmosphere, altitude, elevation, multiple_scattering=multiple, ground_albedo=albedo)
-             for _, altitude, elevation in inputs]
+    altitudes = [altitude for _, altitude, _ in inputs]
+    path = key_tiles(altitudes, [elevation for _, _, elevation in inputs], max_keys=TILES_PER_COLUMN)
+    shared = shared_max_distance(altitudes, atmosphere) if len(path.keys) > 1 else None
+    tiles = [bake_tile(atmosphere, altitude, elevation, multiple_scattering=multiple, ground_albedo=albedo,
+                       max_distance_m=shared) for altitude, elevation in path.keys]
     image = write_tiles(tiles)
     image[_KEY] = key
     image[_TILES] = len(tiles)
+    scene[facts.KEY_TILES] = len(tiles)
     size = tuple(image.size)
     _clear_keys(scene)
     top = atmosphere.atmosphere_height
     names = scene_reading.groups().parameters.PRECISE_PARAMETER_NAMES
-    for index, ((frame, altitude, _), tile) in enumerate(zip(inputs, tiles)):
-        _write_parameters(scene, tile_origin(index), altitude, tile, top, size)
-        if len(tiles) > 1:
+    keyed = len({(altitude, elevation) for _, altitude, elevation in inputs}) > 1   # else one tile, constant values
+    for (frame, altitude, _), segment, weight in zip(inputs, path.segments, path.weights):
+        _write_parameters(scene, tile_origin(segment), altitude, tiles[segment], top, size, weight)
+        if keyed:
             for name in names:
                 scene.keyframe_insert(f'["{name}"]', frame=frame)
-    if len(tiles) > 1:
+    if keyed:
         _constant_interpolation(scene, names)
         scene.frame_set(scene.frame_current)   # re-evaluate the keyed values at the current frame
     _revalidate_drivers(scene)
@@ -198,6 +212,8 @@ def remove(scene) -> None:
     """Remove the Precise parameters' keys (the parameters are cleared with the others) and, when no scene
     uses the Precise level any more, the table image."""
     _clear_keys(scene)
+    if facts.KEY_TILES in scene:
+        del scene[facts.KEY_TILES]
     image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
     still_used = any(getattr(other, "atmos", None) is not None and other.atmos.enabled and other is not scene
                      and other.get(scene_reading.groups().parameters.PRECISE_TILE) is not None
@@ -220,8 +236,9 @@ def describe() -> str:
     if image is None:
         return "Precise: no table baked yet"
     tiles = int(image.get(_TILES, 1))
+    keys = " (key tiles along the camera's and sun's path, two blended per frame)" if tiles > 1 else ""
     return (f"Precise: baked {tiles} table tile{'s' if tiles != 1 else ''} into the image \"{image.name}\" "
-            f"({image.size[0]}x{image.size[1]}, packed)")
+            f"({image.size[0]}x{image.size[1]}, packed){keys}")
 
 
 def uses_precise(scene) -> bool:
@@ -231,15 +248,16 @@ def uses_precise(scene) -> bool:
 
 
 def moves(scene) -> bool:
-    """True when the camera or the sun moves over time (one tile per frame)."""
+    """True when the camera or the sun moves over time (key tiles along their path, when altitude or elevation
+    changes)."""
     return scene_reading.moves_over_time(scene.camera) or scene_reading.is_sun_animated(scene)
 
 
 def follow(scene) -> None:
     """After a parameter, sun or camera change: re-bake a still scene's one tile (at once in the background, else
-    0.3 s after the last change, so a slider drag bakes once). An animated scene's per-frame tiles are re-baked
-    by Enable, Refresh and quality changes (:func:`bake`), and in the background with the sun's keys when an edit
-    makes those stale (:func:`.sun_bake.follow`); in the UI not on every edit (about 0.5 s a frame)."""
+    0.3 s after the last change, so a slider drag bakes once). An animated scene's key tiles are re-baked by
+    Enable, Refresh and quality changes (:func:`bake`), and in the background with the sun's keys when an edit
+    makes those stale (:func:`.sun_bake.follow`); in the UI not on every edit (0.5-0.9 s a key tile)."""
     if not uses_precise(scene) or moves(scene):
         return
     if bpy.app.background:
