@@ -35,6 +35,7 @@ disturbs less), every single time, and the node count of the aerial-perspective 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import platform
@@ -150,7 +151,9 @@ def timed_render(scene) -> float:
     return time.perf_counter() - began
 
 
-def bench_engine(engine: str, args: argparse.Namespace) -> list[str]:
+def bench_engine(engine: str, args: argparse.Namespace, results: list[dict] | None = None) -> list[str]:
+    """Time every configuration in ``engine``; the table rows, and one dict per configuration appended to
+    ``results`` (``--json``)."""
     scene = build(args, engine)
     configs = CONFIGS + (SKY_TEXTURE,) + (DECOMPOSED if args.decompose else ())
     if args.only:
@@ -179,6 +182,11 @@ def bench_engine(engine: str, args: argparse.Namespace) -> list[str]:
     for config in configs:
         median = statistics.median(times[config])
         paired = statistics.median(t / off for t, off in zip(times[config], times["off"]))
+        if results is not None:
+            results.append({"engine": engine, "config": config, "nodes": nodes[config], "median_s": median,
+                            "ratio_off": median / base, "paired_ratio_off": paired,
+                            "ratio_sky_texture": None if sky_base is None else median / sky_base,
+                            "first_s": first[config], "times_s": times[config]})
         rows.append(f"| {engine} | {config} | {nodes[config]} | {median:.2f} s | {median / base:.2f} "
                     f"({paired:.2f}) | {'-' if sky_base is None else f'{median / sky_base:.2f}'} | "
                     f"{first[config]:.2f} s | " + ", ".join(f"{t:.2f}" for t in times[config]) + " s |")
@@ -196,12 +204,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--decompose", action="store_true", help="also time Fast's sky alone and aerial alone")
     parser.add_argument("--only", help="comma-separated configurations to time instead (must include 'off'), e.g. "
                                        "off,fast-per-pixel-aerial-only,fast-aerial-only")
+    parser.add_argument("--json", type=Path, help="also write the results as JSON to this file (./run bench)")
     args = parser.parse_args(argv)
     atmos_addon.register()
     load_before = " / ".join(f"{v:.1f}" for v in os.getloadavg())
-    rows = []
+    rows, results = [], []
     for engine in args.engines.split(","):
-        rows += bench_engine(engine.strip(), args)
+        rows += bench_engine(engine.strip(), args, results)
     width, height = args.resolution
     print(f"\nBlender {bpy.app.version_string}, valley {width}x{height} px, {args.samples} samples, Compositor mode, "
           f"preset '{args.preset}', {args.threads} threads; {os.cpu_count()} CPU cores (nproc), {cpu_model()}, "
@@ -212,6 +221,9 @@ def main(argv: list[str] | None = None) -> int:
           "| first render (shader compile) | single renders |")
     print("|---|---|---:|---:|---:|---:|---:|---|")
     print("\n".join(rows))
+    if args.json is not None:
+        args.json.write_text(json.dumps({"blender": bpy.app.version_string, "resolution": [width, height],
+                                         "samples": args.samples, "threads": args.threads, "rows": results}))
     atmos_addon.unregister()
     return 0
 
