@@ -8,7 +8,8 @@ import pytest
 
 from atmos_addon.physics import Atmosphere
 from atmos_addon.physics.optical_depth import optical_depth_to_space
-from atmos_addon.physics.precise import (ALTITUDE_SCALE_M, ALTITUDE_STEP, DEFAULT_SHAPE, MultipleScatteringTable,
+from atmos_addon.physics.precise import (ALTITUDE_MAX_STEP_M, ALTITUDE_SCALE_M, ALTITUDE_STEP, DEFAULT_SHAPE,
+                                         MultipleScatteringTable,
                                          SunTransmittanceTable, TableShape, atmosphere_tables, bake_tile,
                                          blend_tiles, distance_to_top, evaluate, horizon_cosine, key_tiles,
                                          lighting_from_tile, max_distance, mid_step_error, path_coordinates,
@@ -430,9 +431,13 @@ def test_key_tiles_of_a_pan_a_climb_a_turn_and_a_jump():
     # a camera panning at one altitude under a still sun: one tile, nothing to blend
     pan = key_tiles(np.full(100, 30.0), np.full(100, 0.4))
     assert pan.keys == ((30.0, 0.4),) and set(pan.weights) == {0.0} and set(pan.segments) == {0}
-    # a drone climbing 0 -> 3 km: keys a step of ln(1 + h / 300 m) apart
+    # a drone climbing 0 -> 3 km: keys a step of ln(1 + h / 300 m) apart until that step is 500 m, then 500 m
     climb = key_tiles(np.linspace(0.0, 3000.0, 200), np.full(200, 0.3))
-    assert len(climb.keys) == math.ceil(math.log1p(3000.0 / ALTITUDE_SCALE_M) / ALTITUDE_STEP) + 1
+    bend = ALTITUDE_MAX_STEP_M / ALTITUDE_STEP - ALTITUDE_SCALE_M
+    assert len(climb.keys) == math.ceil(math.log1p(bend / ALTITUDE_SCALE_M) / ALTITUDE_STEP
+                                        + (3000.0 - bend) / ALTITUDE_MAX_STEP_M) + 1
+    heights = sorted(h for h, _ in climb.keys)
+    assert np.diff(heights).max() <= ALTITUDE_MAX_STEP_M + 1e-6 and heights[1] == pytest.approx(125.0, rel=0.02)
     # a sun that rises 10 -> 20 deg and sets again: a key where it turns, so no frame is further than half a step
     # from what it blends
     turn = key_tiles(np.zeros(101), np.radians(10.0 + 10.0 * np.sin(np.linspace(0.0, np.pi, 101))))
@@ -459,7 +464,8 @@ def test_blended_key_tiles_follow_the_tile_baked_between_them():
     for first_key, second_key, median, high in (((2.0, 20.0), (2.0, 18.0), 0.002, 0.005),
                                                 ((2.0, 6.0), (2.0, 5.0), 0.003, 0.005),
                                                 ((2.0, 1.5), (2.0, 1.0), 0.003, 0.03),
-                                                ((300.0, 5.0), (570.0, 5.0), 0.003, 0.015)):
+                                                ((300.0, 5.0), (570.0, 5.0), 0.003, 0.015),
+                                                ((3000.0, 20.0), (3500.0, 20.0), 0.003, 0.02)):
         error = mid_step_error(EARTH, (first_key[0], math.radians(first_key[1])),
                                (second_key[0], math.radians(second_key[1])), rays=1500)
         for name, (got_median, got_high) in error.items():
