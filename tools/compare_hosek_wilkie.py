@@ -68,6 +68,7 @@ if str(REPO_ROOT) not in sys.path:
 
 from atmos_addon import presets
 from atmos_addon.physics.atmosphere import Atmosphere
+from atmos_addon.physics.visibility import visibility_m
 from atmos_addon.physics.spectral_reference import (
     XYZ_WEIGHTS,
     aerosol_angstrom_fit,
@@ -132,8 +133,7 @@ def preetham_turbidity(atmosphere: Atmosphere) -> dict[str, float]:
     of that extinction after Rayleigh's).
     """
     fit = aerosol_angstrom_fit(atmosphere)
-    green = list(np.asarray(atmosphere.wavelengths_nm)).index(ANGSTROM_REFERENCE_WAVELENGTH_NM)
-    visibility_km = -math.log(0.02) / float(atmosphere.extinction_coefficient[green]) / 1000.0
+    visibility_km = visibility_m(atmosphere) / 1000.0
     tau_a = fit["extinction_550_per_m"] * float(atmosphere.mie_scale_height)
     at_550 = int(np.flatnonzero(WAVELENGTHS_NM == ANGSTROM_REFERENCE_WAVELENGTH_NM)[0])
     tau_r = float(spectral_coefficients(atmosphere)["rayleigh_scattering"][at_550]) * float(

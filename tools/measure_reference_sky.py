@@ -29,8 +29,9 @@ the report (the text around it is kept); without it the block is printed.
 
 ``--rgb-vs-spectral`` only prints a small deterministic table (seconds, no Monte Carlo): single scattering by
 quadrature (:func:`atmos_addon.physics.reference.single_scattering`) of the clear preset at the zenith, no ozone,
-once as Atmos renders it (three wavelengths 680/550/440 nm taken as R, G, B, a white sun) and once as a spectrum
-(the 16 three-wavelength atmospheres, ASTM sun, CIE 1931 -> Rec.709): the zenith B/R of both.
+as Atmos renders it (three channels at 648.1 / 547.4 / 443.1 nm under the solar spectrum's sun), as it rendered it
+before December 2026 (680 / 550 / 440 nm, a white sun) and as a spectrum (the 16 three-wavelength atmospheres,
+ASTM sun, CIE 1931 -> Rec.709): the zenith B/R of each and its chromaticity's distance from the spectrum's.
 """
 
 from __future__ import annotations
@@ -55,7 +56,9 @@ from atmos_addon.physics.reference import _distance_to_top, single_scattering  #
 from atmos_addon.physics.spectral_reference import (RGB_WEIGHTS, TRIPLE_INDICES, XYZ_WEIGHTS,  # noqa: E402
                                                     aerosol_angstrom_fit, linear_stderr, ratio_and_stderr,
                                                     spectral_radiance, triple_atmospheres)
-from atmos_addon.physics.spectrum import DOBSON_UNIT_PER_M2  # noqa: E402
+from atmos_addon.physics.atmosphere import SEED_SUN_IRRADIANCE_TOP, SEED_WAVELENGTHS_NM  # noqa: E402
+from atmos_addon.physics.spectrum import (DOBSON_UNIT_PER_M2, LINEAR_REC709_TO_XYZ,  # noqa: E402
+                                          SOLAR_IRRADIANCE_TOP_W_M2_NM, chromaticity_xy, spectrum_to_xyz)
 from tools.bench import publish_generated_block  # noqa: E402  (one definition for the report tools)
 
 ELEVATIONS_DEG = (60.0, 20.0, 5.0, 1.0, -2.0, -4.0, -6.0)
@@ -256,6 +259,28 @@ def markdown(results: dict, seconds: dict, elevations: tuple[float, ...], comman
                              f"| {c['x'][k]:.4f} | {c['y'][k]:.4f} | {', '.join(f'{r:.2g}' for r in rel)} |")
         lines.append("")
 
+    ours = atmos_default_colours(elevations)
+    lines += ["**Atmos default against the reference, every view** (ozone on): the default's luminance Y (its sun "
+              "scaled to the ASTM sun's luminance) against the reference's, in % (± the reference's standard error), "
+              "and the distance between their CIE 1931 chromaticities (xy). Atmos: three channels at 648.1 / 547.4 / "
+              "443.1 nm under the solar spectrum's sun, the reference's ground albedo 0.3 (with its multiple-"
+              "scattering table's default albedo, (0.18, 0.2, 0.15), the default's day sky is 6 % below the "
+              "reference at the zenith and 14-17 % below near the horizon at a 60 deg sun: the ground's light, "
+              "not the model).", "",
+              "| sun | view | Y, reference | Y, Atmos | Y difference | x, y reference | x, y Atmos | xy distance |",
+              "|---:|---|---:|---:|---:|---:|---:|---:|"]
+    for e in elevations:
+        c = results["ozone on", e]
+        for k, view in enumerate(VIEW_NAMES):
+            y_ours, xy_ours = ours[e]["Y"][k], ours[e]["xy"][k]
+            difference = 100.0 * (y_ours / c["Y"][k] - 1.0) if c["Y"][k] > 0.0 else float("nan")
+            se = 100.0 * c["Y_se"][k] / c["Y"][k] if c["Y"][k] > 0.0 else float("nan")
+            distance = float(np.hypot(xy_ours[0] - c["x"][k], xy_ours[1] - c["y"][k]))
+            lines.append(f"| {e:g} | {view} | {c['Y'][k]:.4g} | {y_ours:.4g} | {difference:+.1f} ± {se:.1f} % "
+                         f"| {c['x'][k]:.4f}, {c['y'][k]:.4f} | {xy_ours[0]:.4f}, {xy_ours[1]:.4f} "
+                         f"| {distance:.4f} |")
+    lines.append("")
+
     lines += ["**Differences over 10 %** in zenith B/R, as generated: Blender's MULTIPLE_SCATTERING and the Atmos "
               "rows against the reference (clear preset; the Atmos rows against ozone on: the default carries "
               "300 DU, Fast's sky has none). For Blender the difference is split into the atmospheres (reference "
@@ -308,26 +333,62 @@ Reproduce with the command in the generated block (numpy only, no Blender; fixed
 """
 
 
+def seed_channels(atm: Atmosphere) -> Atmosphere:
+    """``atm`` as Atmos rendered it before December 2026: R, G, B at 680 / 550 / 440 nm (standard air's Rayleigh
+    coefficients there, the aerosol's Angstrom fit read there) under a white sun of luminance 4.5."""
+    fit = aerosol_angstrom_fit(atm)
+    extinction = fit["extinction_550_per_m"] * (np.array(SEED_WAVELENGTHS_NM) / 550.0) ** (-fit["alpha"])
+    albedo = fit["single_scattering_albedo"]
+    return atm.replace(wavelengths_nm=SEED_WAVELENGTHS_NM, rayleigh_scattering=None,
+                       mie_scattering=extinction * albedo, mie_absorption=extinction * (1.0 - albedo),
+                       sun_irradiance_top=SEED_SUN_IRRADIANCE_TOP)
+
+
+def _xy(rgb: np.ndarray) -> np.ndarray:
+    return chromaticity_xy(LINEAR_REC709_TO_XYZ @ rgb)
+
+
 def rgb_versus_spectral(elevations: tuple[float, ...]) -> str:
-    """Zenith B/R of single scattering (quadrature, no ozone, clear preset): 3-wavelength RGB against spectral."""
-    clear = presets.load("clear").atmosphere
+    """Zenith B/R and chromaticity of single scattering (quadrature, no ozone, clear preset): three channels, as
+    Atmos renders them now and as it did before December 2026, against the spectrum."""
+    clear = presets.load("clear").atmosphere.replace(ozone_column_du=0.0)  # as the triples: no ozone
+    seed = seed_channels(clear)
     zenith = direction(90.0)
     distance = float(_distance_to_top(np.asarray(clear.planet_radius), np.asarray(1.0), clear))
     atmospheres = triple_atmospheres(clear)
-    lines = ["| sun | B/R, RGB at 680/550/440 nm, white sun | B/R, spectral | ratio |", "|---:|---:|---:|---:|"]
+    lines = ["| sun | B/R, spectral | B/R, channels 648/547/443 nm, solar sun | ratio | xy distance "
+             "| B/R, 680/550/440 nm, white sun | ratio | xy distance |", "|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for elevation in elevations:
         if elevation < 0.0:
             continue
         sun = direction(elevation)
-        rgb = single_scattering(0.0, zenith, distance, sun, clear, n_steps=1001, n_sun_steps=129)[1]
         spectrum = np.empty(RGB_WEIGHTS.shape[0])
         for indices, atmosphere in zip(TRIPLE_INDICES, atmospheres, strict=True):
             spectrum[indices] = single_scattering(0.0, zenith, distance, sun, atmosphere, n_steps=1001,
                                                   n_sun_steps=129)[1]
         colour = spectrum @ RGB_WEIGHTS
-        lines.append(f"| {elevation:g} | {rgb[2] / rgb[0]:.3f} | {colour[2] / colour[0]:.3f} "
-                     f"| {rgb[2] / rgb[0] / (colour[2] / colour[0]):.3f} |")
+        cells = [f"{elevation:g}", f"{colour[2] / colour[0]:.3f}"]
+        for atm in (clear, seed):
+            rgb = single_scattering(0.0, zenith, distance, sun, atm, n_steps=1001, n_sun_steps=129)[1]
+            cells += [f"{rgb[2] / rgb[0]:.3f}", f"{rgb[2] / rgb[0] / (colour[2] / colour[0]):.3f}",
+                      f"{np.linalg.norm(_xy(rgb) - _xy(colour)):.4f}"]
+        lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def atmos_default_colours(elevations: tuple[float, ...]) -> dict[float, dict[str, np.ndarray]]:
+    """The Atmos default's Y, x, y in the three views per sun elevation (Precise with multiple scattering, the clear
+    preset, the reference's ground albedo), its sun scaled to the ASTM sun's luminance so that Y compares."""
+    clear = presets.load("clear").atmosphere
+    sun_luminance = float(LINEAR_REC709_TO_XYZ[1] @ clear.sun_irradiance_top)
+    scale = float(spectrum_to_xyz(SOLAR_IRRADIANCE_TOP_W_M2_NM)[1]) / sun_luminance
+    result = {}
+    for elevation in elevations:
+        rgb = np.array([sky_radiance(view, direction(elevation), clear, camera_altitude_m=2.0,
+                                     ground_albedo=(GROUND_ALBEDO,) * 3) for view in views()])
+        xyz = scale * rgb @ LINEAR_REC709_TO_XYZ.T
+        result[elevation] = {"Y": xyz[:, 1], "xy": chromaticity_xy(xyz)}
+    return result
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -13,10 +13,19 @@ the quality, rebuild its node groups and look different). Two rules keep every f
 
 from __future__ import annotations
 
+from ..physics import rayleigh_coefficients
+from ..physics.atmosphere import SEED_SUN_IRRADIANCE_TOP, SEED_WAVELENGTHS_NM
+
 #: Settings whose default changed, with the default a file saved before the change was made with. December 2026
 #: (issue 27): the default became the complete model, Precise with multiple scattering and 300 DU of ozone; it was
-#: Fast without either.
-FORMER_DEFAULTS = {"quality": "FAST", "multiple_scattering": False, "ozone_column_du": 0.0}
+#: Fast without either. Then the channels became the solar spectrum's as Rec.709 sees it: wavelengths 648.1, 547.4,
+#: 443.1 nm (standard air's Rayleigh coefficients there) and a sun of the spectrum's colour; they were 680, 550,
+#: 440 nm and a white sun of 4.5.
+FORMER_DEFAULTS = {"quality": "FAST", "multiple_scattering": False, "ozone_column_du": 0.0,
+                   "wavelengths_nm": SEED_WAVELENGTHS_NM,
+                   "rayleigh_scattering_per_km": tuple(float(v) for v in rayleigh_coefficients(SEED_WAVELENGTHS_NM)
+                                                       * 1000.0),
+                   "sun_irradiance_top": (SEED_SUN_IRRADIANCE_TOP,) * 3}
 
 
 def pin_defaults(settings) -> None:

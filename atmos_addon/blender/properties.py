@@ -238,7 +238,8 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         name="Sun Irradiance at Top (W/m\u00b2)",
         description=(
             "Irradiance of the sun above the atmosphere for red, green, blue, in Blender sun-strength units "
-            "(W/m^2). The sun lamp and the haze get this times the transmittance of the air towards the sun"
+            "(W/m^2). The sun lamp and the haze get this times the transmittance of the air towards the sun. "
+            "Default: the solar spectrum's colour, slightly warm as in Blender's own sky, at luminance 4.5"
         ),
         size=3,
         default=tuple(float(v) for v in _CLEAR.sun_irradiance_top),
@@ -263,7 +264,11 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
     )
     wavelengths_nm: FloatVectorProperty(
         name="Wavelengths (nm)",
-        description="Wavelengths the red, green and blue channels stand for, in nanometres",
+        description=(
+            "Wavelengths the red, green and blue channels stand for, in nanometres. Default 648.1, 547.4, 443.1: "
+            "where air's scattering equals its mean over each of Blender's Rec.709 channels under sunlight, so the "
+            "sky renders the colour of the full spectrum. Haze and Air Density are read at 550 nm from them"
+        ),
         size=3,
         default=tuple(float(v) for v in _CLEAR.wavelengths_nm),
         min=300.0,

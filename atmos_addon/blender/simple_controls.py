@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..physics import rayleigh_coefficients
+from ..physics.spectrum import channel_value_at
 
 #: -ln(0.02): the 2 % contrast threshold of Koschmieder's visibility.
 KOSCHMIEDER = 3.912
@@ -31,18 +32,15 @@ DEFAULT_ABSORPTION_RATIO = 0.1
 
 
 def _at_550(settings, values) -> float:
-    """A per-channel value interpolated to 550 nm over the settings' channel wavelengths (clamped outside)."""
-    wavelengths = np.asarray(settings.wavelengths_nm, dtype=float)
-    order = np.argsort(wavelengths)
-    return float(np.interp(VISIBILITY_WAVELENGTH_NM, wavelengths[order], np.asarray(values, dtype=float)[order]))
+    """A per-channel value read at 550 nm from the settings' channel wavelengths (the power law through the
+    channels around it, :func:`~atmos_addon.physics.spectrum.channel_value_at`)."""
+    return channel_value_at(VISIBILITY_WAVELENGTH_NM, settings.wavelengths_nm, values)
 
 
 def extinction_550_per_m(settings) -> float:
-    """Sea-level extinction coefficient at 550 nm, 1/m (settings hold 1/km)."""
-    total = (np.asarray(settings.rayleigh_scattering_per_km, dtype=float)
-             + np.asarray(settings.mie_scattering_per_km, dtype=float)
-             + np.asarray(settings.mie_absorption_per_km, dtype=float))
-    return _at_550(settings, total) / 1000.0
+    """Sea-level extinction coefficient at 550 nm, 1/m (settings hold 1/km), each species read at 550 nm."""
+    return sum(_at_550(settings, getattr(settings, name)) for name in
+               ("rayleigh_scattering_per_km", "mie_scattering_per_km", "mie_absorption_per_km")) / 1000.0
 
 
 def visibility_m(settings) -> float:

@@ -9,8 +9,11 @@ scatter and absorb, so the extinction coefficient is beta_ex = beta_R + beta_M,s
 Default: a clear Earth sky.
 
 * Rayleigh coefficients from :func:`~atmos_addon.physics.rayleigh.rayleigh_coefficients` at the
-  default wavelengths (680, 550, 440 nm) for 288.15 K and 101325 Pa; scale height H_R = k T / (m g) =
-  8434 m so that beta_R H_R is the hydrostatic column optical depth of Bodhaine et al. 1999.
+  default wavelengths for 288.15 K and 101325 Pa; scale height H_R = k T / (m g) = 8434 m so that
+  beta_R H_R is the hydrostatic column optical depth of Bodhaine et al. 1999. The wavelengths, 648.1,
+  547.4 and 443.1 nm, are those that stand for Blender's Rec.709 channels under sunlight: where air's
+  coefficient equals its mean over the channel's band (:func:`~atmos_addon.physics.spectrum.channel_wavelengths_nm`;
+  the seed's 680 / 550 / 440 nm make the sky 25-31 % too blue).
 * A light continental haze: grey Mie scattering 3.3e-5 1/m and absorption 3.3e-6 1/m (single-scattering
   albedo 0.91), scale height 1200 m, Henyey-Greenstein g = 0.76 (Bruneton & Neyret 2008). Vertical aerosol
   optical depth 0.044; with the Rayleigh term the 550 nm extinction is 4.5e-5 1/m, a meteorological
@@ -18,14 +21,15 @@ Default: a clear Earth sky.
 * No ozone (``ozone_column_du`` = 0): the seed's atmosphere. The product's Earth presets carry 300 DU, the
   Earth's mean column, in a tent-shaped layer between 10 and 40 km (:meth:`Atmosphere.ozone_density`, the
   profile of Bruneton 2017). Ozone absorbs and does not scatter; its cross-section per channel is the
-  Daumont-Brion-Malicet spectrum averaged over the channel's sunlit band (R 4.0e-25, G 3.0e-25, B 0.31e-25 m^2
+  Daumont-Brion-Malicet spectrum averaged over the channel's sunlit band (R 4.93e-25, G 3.19e-25, B 0 m^2
   per molecule, :data:`~atmos_addon.physics.spectrum.OZONE_CHANNEL_CROSS_SECTION_M2`), so it takes red and green
   from light that crosses the layer at a slant: the blue of the twilight zenith.
-* ``sun_irradiance_top`` = 4.5 W/m^2 per channel, white. Blender's sun strength is a render unit, not
-  the solar constant (1361 W/m^2): daylight at film exposure 0 uses a sun strength of about 3-5. With
-  4.5 above the atmosphere the clear-sky ground sun has a luminance-weighted strength of about 3.9 at
-  the zenith and 3.8 at 60 deg elevation. White because the renderer's white point is daylight and the
-  sun above the atmosphere (about 5800 K) is close to it; the atmosphere alone makes it warmer.
+* ``sun_irradiance_top``: luminance 4.5 W/m^2 in the solar spectrum's colour, (4.94, 4.40, 4.24). Blender's sun
+  strength is a render unit, not the solar constant (1361 W/m^2): daylight at film exposure 0 uses a sun
+  strength of about 3-5. With 4.5 above the atmosphere the clear-sky ground sun has a luminance-weighted
+  strength of about 3.9 at the zenith and 3.8 at 60 deg elevation. The colour is the ASTM G173 spectrum's in
+  linear Rec.709 without chromatic adaptation (:data:`~atmos_addon.physics.spectrum.SUN_TOP_RGB`), slightly
+  warm, as Blender's own sky renders the sun; the seed's sun was white (4.5 per channel).
 """
 
 from __future__ import annotations
@@ -38,11 +42,14 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .rayleigh import rayleigh_coefficients, rayleigh_column_scale_height
-from .spectrum import (DEFAULT_OZONE_PEAK_ALTITUDE_M, OZONE_CHANNEL_CROSS_SECTION_M2, ozone_number_density_per_m3,
-                       ozone_tent)
+from .spectrum import (CHANNEL_WAVELENGTHS_NM, DEFAULT_OZONE_PEAK_ALTITUDE_M, OZONE_CHANNEL_CROSS_SECTION_M2,
+                       SUN_TOP_RGB, ozone_number_density_per_m3, ozone_tent)
 
-#: Default colour-channel wavelengths (R, G, B), nm.
-DEFAULT_WAVELENGTHS_NM = (680.0, 550.0, 440.0)
+#: Default colour-channel wavelengths (R, G, B), nm: the wavelengths that stand for Blender's Rec.709 channels
+#: under sunlight, 648.1, 547.4, 443.1 (:data:`~atmos_addon.physics.spectrum.CHANNEL_WAVELENGTHS_NM`).
+DEFAULT_WAVELENGTHS_NM = tuple(float(value) for value in CHANNEL_WAVELENGTHS_NM)
+#: The wavelengths of the seed and of Atmos before December 2026, nm (Bruneton 2008's and Hillaire 2020's choice).
+SEED_WAVELENGTHS_NM = (680.0, 550.0, 440.0)
 #: Sea-level scale height of the Rayleigh layer, m (column-consistent, see module docstring).
 DEFAULT_RAYLEIGH_SCALE_HEIGHT_M = rayleigh_column_scale_height()
 #: Sea-level Mie scattering coefficient of a light haze, 1/m (grey).
@@ -57,8 +64,13 @@ DEFAULT_MIE_SCALE_HEIGHT_M = 1200.0
 DEFAULT_PLANET_RADIUS_M = 6_360_000.0
 #: Height of the top of the atmosphere above the ground, m.
 DEFAULT_ATMOSPHERE_HEIGHT_M = 100_000.0
-#: Sun irradiance above the atmosphere per channel, W/m^2 in Blender's sun-strength unit (see module docstring).
-DEFAULT_SUN_IRRADIANCE_TOP = 4.5
+#: Luminance of the sun above the atmosphere, W/m^2 in Blender's sun-strength unit (see module docstring).
+DEFAULT_SUN_LUMINANCE_TOP = 4.5
+#: Sun irradiance above the atmosphere per channel, W/m^2 in Blender's sun-strength unit: the solar spectrum's
+#: colour in linear Rec.709 at luminance 4.5, (4.94, 4.40, 4.24) (see module docstring).
+DEFAULT_SUN_IRRADIANCE_TOP = tuple(float(value) for value in DEFAULT_SUN_LUMINANCE_TOP * SUN_TOP_RGB)
+#: The seed's sun above the atmosphere (white, 4.5 per channel; Atmos before December 2026).
+SEED_SUN_IRRADIANCE_TOP = 4.5
 
 _CHANNELS = 3
 _RGB_FIELDS = ("rayleigh_scattering", "mie_scattering", "mie_absorption", "mie_g", "sun_irradiance_top",

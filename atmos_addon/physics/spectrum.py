@@ -55,6 +55,8 @@ ozone at 273.15 K and 101325 Pa, 2.6868e20 molecules/m^2. 300 DU give a vertical
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -326,20 +328,95 @@ def ozone_absorption_per_m(altitude_m: ArrayLike, total_column_du: float = DEFAU
     return density[..., np.newaxis] * OZONE_CROSS_SECTION_M2
 
 
-def sunlit_channel_weights() -> np.ndarray:
+def channel_response_weights() -> np.ndarray:
     """What each wavelength contributes to Blender's linear Rec.709 R, G, B under sunlight, shape (48, 3), each
-    column summing to 1: the channel's response (CIE 1931 matching functions through :data:`XYZ_TO_LINEAR_REC709`,
-    its negative lobes cut) times the sun above the atmosphere (:data:`SOLAR_IRRADIANCE_TOP_W_M2_NM`)."""
-    response = np.maximum(CIE_1931_XYZ_BAR @ XYZ_TO_LINEAR_REC709.T, 0.0) * SOLAR_IRRADIANCE_TOP_W_M2_NM[:, None]
+    column summing to 1: the channel's response (CIE 1931 matching functions through :data:`XYZ_TO_LINEAR_REC709`)
+    times the sun above the atmosphere (:data:`SOLAR_IRRADIANCE_TOP_W_M2_NM`), **with** the channels' negative
+    lobes (the R channel's weight is negative from 440 to 540 nm, 42 % of its sum; G's and B's 13 % and 12 %).
+
+    For light whose spectrum is the sun's times a factor f(lambda) (a thin layer's scattering, Rayleigh's
+    lambda^-4, an aerosol's Angstrom law, a small absorption), channel c of the colour is exactly the sun's channel
+    c times ``f @ channel_response_weights()[:, c]``: the weights turn a spectral coefficient into the one
+    coefficient per channel that renders the same RGB in the optically thin limit.
+    """
+    response = (CIE_1931_XYZ_BAR @ XYZ_TO_LINEAR_REC709.T) * SOLAR_IRRADIANCE_TOP_W_M2_NM[:, None]
     return response / response.sum(axis=0)
 
 
-#: Ozone's absorption cross-section averaged over each Rec.709 channel under sunlight (R, G, B), m^2:
-#: about 4.0e-25, 3.0e-25, 0.31e-25 (:func:`sunlit_channel_weights`). The red channel's light lies mostly on the
+def _wavelength_of_rayleigh_coefficient(target_per_m: float) -> float:
+    """The wavelength (nm, 380-780) at which standard sea-level air's Rayleigh coefficient equals ``target_per_m``
+    (it falls monotonically with wavelength: bisection to 1e-9 nm)."""
+    low, high = 380.0, 780.0
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        if float(rayleigh_coefficients(np.array([middle]))[0]) > target_per_m:
+            low = middle
+        else:
+            high = middle
+    return 0.5 * (low + high)
+
+
+def channel_wavelengths_nm() -> np.ndarray:
+    """The wavelength that stands for each Rec.709 channel, nm, shape (3,): where standard air's Rayleigh
+    coefficient equals its mean over the channel's sunlit band (:func:`channel_response_weights`), rounded to
+    0.1 nm: 648.1, 547.4 and 443.1 nm.
+
+    Three channels cannot follow a spectrum, but they can be exact where it matters most: in the optically thin
+    limit a sky of Rayleigh scattering renders the colour of the full spectrum when each channel's coefficient is
+    that band mean. The customary 680 / 550 / 440 nm (Bruneton 2008, Hillaire 2020) put red on the channel's
+    long-wavelength tail and give a sky 25 % too blue in B/R (the red channel's negative lobe in the blue-green
+    lowers its mean coefficient less than 680 nm does). An Angstrom aerosol evaluated at these wavelengths is
+    within 1.1 % of its own band mean for alpha = 1.3.
+    """
+    band_mean = rayleigh_spectrum_per_m() @ channel_response_weights()
+    return np.round([_wavelength_of_rayleigh_coefficient(float(value)) for value in band_mean], 1)
+
+
+#: The wavelengths that stand for the R, G, B channels, nm (:func:`channel_wavelengths_nm`).
+CHANNEL_WAVELENGTHS_NM = _read_only(channel_wavelengths_nm())
+
+
+def sun_top_rgb() -> np.ndarray:
+    """The sun above the atmosphere (ASTM G173 over 360-830 nm) in linear Rec.709, divided by its luminance Y,
+    shape (3,): about (1.098, 0.977, 0.942), slightly warm (x, y = 0.323, 0.333), as Blender's own sky shows it
+    (no chromatic adaptation)."""
+    rgb = spectrum_to_linear_rec709(SOLAR_IRRADIANCE_TOP_W_M2_NM)
+    return rgb / spectrum_to_xyz(SOLAR_IRRADIANCE_TOP_W_M2_NM)[1]
+
+
+#: The sun's colour above the atmosphere per Rec.709 channel, luminance 1 (:func:`sun_top_rgb`).
+SUN_TOP_RGB = _read_only(sun_top_rgb())
+
+
+def channel_value_at(wavelength_nm: float, channel_wavelengths_nm: ArrayLike, values: ArrayLike) -> float:
+    """A per-channel coefficient read at ``wavelength_nm``: the power law through the two channels around it
+    (a straight line in log-log, exact for Angstrom's law and within 0.01 % for Rayleigh's between neighbouring
+    channels), the nearest channel's value outside their range; a straight line where either value is 0."""
+    wavelengths = np.asarray(channel_wavelengths_nm, dtype=np.float64)
+    order = np.argsort(wavelengths)
+    wavelengths, values = wavelengths[order], np.asarray(values, dtype=np.float64)[order]
+    target = float(wavelength_nm)
+    if target <= wavelengths[0]:
+        return float(values[0])
+    if target >= wavelengths[-1]:
+        return float(values[-1])
+    upper = int(np.searchsorted(wavelengths, target))
+    (w0, w1), (v0, v1) = wavelengths[upper - 1:upper + 1], values[upper - 1:upper + 1]
+    fraction_linear = (target - w0) / (w1 - w0)
+    if v0 <= 0.0 or v1 <= 0.0:
+        return float(v0 + fraction_linear * (v1 - v0))
+    fraction_log = math.log(target / w0) / math.log(w1 / w0)
+    return float(v0 * (v1 / v0) ** fraction_log)
+
+
+#: Ozone's absorption cross-section per Rec.709 channel under sunlight (R, G, B), m^2: 4.93e-25, 3.19e-25, 0: the
+#: channel means of :func:`channel_response_weights`, not below 0. The red channel's light lies mostly on the
 #: Chappuis band's peak near 600 nm, so the cross-section at one wavelength standing for red (680 nm: 1.4e-25)
-#: would take a third of it. exp(-sigma_c N) stays within 4 % of the band's own transmittance up to the column a
-#: twilight ray crosses (25 x 300 DU), which one wavelength per channel does not (red 0.76 against 0.46).
-OZONE_CHANNEL_CROSS_SECTION_M2 = _read_only(OZONE_CROSS_SECTION_M2 @ sunlit_channel_weights())
+#: would take a third of it. exp(-sigma_c N) stays within 5 % of the band's own transmittance (the spectrum
+#: through the layer, weighted as the channel sees it) up to the column a twilight ray crosses (30 x 300 DU). Blue's
+#: signed mean is slightly negative (its negative lobe lies on the band, its positive one below 480 nm, where ozone
+#: hardly absorbs): its band transmittance stays within 0.7 % of 1 up to 30 columns, so blue takes none.
+OZONE_CHANNEL_CROSS_SECTION_M2 = _read_only(np.maximum(OZONE_CROSS_SECTION_M2 @ channel_response_weights(), 0.0))
 
 
 def ozone_vertical_optical_depth(total_column_du: float = DEFAULT_OZONE_COLUMN_DU) -> np.ndarray:

@@ -34,6 +34,7 @@ from .balanced import inscattering_balanced, sun_optical_depths_ground
 from .multiple_scattering_reference import trace_paths
 from .precise import bake_tile, sky_from_tile
 from .precise import evaluate as evaluate_precise
+from .spectrum import channel_value_at
 from .sky import aerial_distance_clamped, atmosphere_at_altitude, dome_distance_approx, inscattering_layered
 from .sky import sky_radiance as dome_sky_radiance
 from .reference import single_scattering
@@ -44,16 +45,25 @@ from .sun import sun_irradiance_ground
 CONTRAST_THRESHOLD = 0.02
 #: -ln(CONTRAST_THRESHOLD) = 3.912: V = KOSCHMIEDER_CONSTANT / beta_ex(550 nm).
 KOSCHMIEDER_CONSTANT = -math.log(CONTRAST_THRESHOLD)
-#: The channel at 550 nm (G) on which visibility is defined.
+#: The channel nearest 550 nm (G).
 GREEN = 1
+#: Wavelength at which visibility is defined, nm.
+VISIBILITY_WAVELENGTH_NM = 550.0
 
 #: The levels :func:`level_contrast` knows ("precise+ms": Precise with its multiple-scattering term).
 LEVELS = ("fast", "balanced", "precise", "precise+ms")
 
 
+def extinction_550_per_m(atm: Atmosphere) -> float:
+    """Sea-level extinction coefficient of ``atm`` at 550 nm, 1/m: each species read at 550 nm from its channels
+    (:func:`~atmos_addon.physics.spectrum.channel_value_at`; the G channel stands for 547.4 nm)."""
+    return sum(channel_value_at(VISIBILITY_WAVELENGTH_NM, atm.wavelengths_nm, values)
+               for values in (atm.rayleigh_scattering, atm.mie_scattering, atm.mie_absorption))
+
+
 def visibility_m(atm: Atmosphere) -> float:
     """Koschmieder's visibility 3.912 / beta_ex(550 nm) of ``atm`` at sea level, m."""
-    return KOSCHMIEDER_CONSTANT / float(atm.extinction_coefficient[GREEN])
+    return KOSCHMIEDER_CONSTANT / extinction_550_per_m(atm)
 
 
 def koschmieder_contrast(distance_m: ArrayLike, visibility: float) -> np.ndarray:

@@ -6,10 +6,10 @@ its node-group migrations).
 ``tools/make_release_blend.py``, saved by Blender 4.5.15, with the pixels that release rendered beside it: two
 scenes, Compositor mode at the Fast level and Per Pixel mode at the Balanced level, emissive planes against the
 Atmos sky. ``data/atmos_7df8acd.blend`` (the release before the Precise sky view, same tool with ``--precise``)
-adds a third scene at the Precise level with multiple scattering. Opened with today's add-on, every Atmos node group must carry today's stamp
-(:mod:`atmos_addon.nodes.stamps`),
-rebuilt in place (no second copy, the compositor's and materials' links kept), none may read as edited, and every
-scene must render as it did (Cycles, pixel centres: emission and sky only, no sampling noise).
+adds a third scene at the Precise level with multiple scattering. Opened with today's add-on, every Atmos node group
+must carry today's stamp (:mod:`atmos_addon.nodes.stamps`), rebuilt in place (no second copy, the compositor's and
+materials' links kept), none may read as edited, and every scene must render as it did (Cycles, pixel centres:
+emission and sky only, no sampling noise).
 """
 
 from __future__ import annotations
@@ -30,11 +30,21 @@ DATA = Path(__file__).resolve().parent / "data"
 RELEASES = {"addba16": ("Compositor", "Per Pixel"), "7df8acd": ("Compositor", "Per Pixel", "Precise")}
 
 
+#: Ozone's cross-section per channel before the spectral channels (December 2026), m^2: the channel means with the
+#: negative lobes cut. Today's (physics.spectrum.OZONE_CHANNEL_CROSS_SECTION_M2) keep them: red 23 % more, blue none,
+#: which moves a scene with ozone by up to 1.2 % (the stored 7df8acd scenes carry 300 DU). The migration test renders
+#: with the former values, so that it checks what the upgrade keeps: settings, node groups, links and tables.
+FORMER_OZONE_CHANNEL_CROSS_SECTION_M2 = np.array([4.00209963e-25, 2.97481703e-25, 3.07292543e-26])
+
+
 pytestmark = pytest.mark.usefixtures("addon")
 
 
 @pytest.mark.parametrize("release", RELEASES)
-def test_a_file_of_an_earlier_release_upgrades_in_place_and_renders_the_same(release, tmp_path):
+def test_a_file_of_an_earlier_release_upgrades_in_place_and_renders_the_same(release, tmp_path, monkeypatch):
+    from atmos_addon.physics import atmosphere
+
+    monkeypatch.setattr(atmosphere, "OZONE_CHANNEL_CROSS_SECTION_M2", FORMER_OZONE_CHANNEL_CROSS_SECTION_M2)
     source = tmp_path / f"atmos_{release}.blend"
     shutil.copy(DATA / source.name, source)   # opened from a copy: the test never rewrites the stored file
     bpy.ops.wm.open_mainfile(filepath=str(source))
@@ -80,7 +90,8 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     # saved earlier with the defaults would switch level on opening. Enabling now writes both explicitly; a file
     # without them (saved before) gets the former defaults back on load (atmos_addon.blender.migration).
     from atmos_addon import api
-    from atmos_addon.blender import facts
+    from atmos_addon.blender import facts, migration
+    from atmos_addon.physics.spectrum import SUN_TOP_RGB
 
     scene = addon
     ru.make_camera(scene, rotation_euler=(1.5, 0.0, 0.0))
@@ -88,7 +99,9 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     settings = scene.atmos
     assert (settings.quality, settings.multiple_scattering) == ("PRECISE", True)
     assert settings.ozone_column_du == pytest.approx(300.0)
-    assert all(settings.is_property_set(name) for name in ("quality", "multiple_scattering", "ozone_column_du"))
+    assert all(settings.is_property_set(name) for name in migration.FORMER_DEFAULTS)
+    np.testing.assert_allclose(settings.wavelengths_nm, [648.1, 547.4, 443.1], rtol=1e-6)  # the spectral channels
+    np.testing.assert_allclose(settings.sun_irradiance_top, 4.5 * SUN_TOP_RGB, rtol=1e-6)
     assert facts.plan_of(scene).level == "precise" and facts.plan_of(scene).multiple_scattering
     today = tmp_path / "today.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(today))
@@ -108,14 +121,20 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
 
     settings.property_unset("quality")          # as a file saved before the change holds them: never set
     settings.property_unset("multiple_scattering")
+    for name in ("wavelengths_nm", "rayleigh_scattering_per_km", "sun_irradiance_top"):  # before the spectral channels
+        settings.property_unset(name)
     older = tmp_path / "older.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(older))
     bpy.ops.wm.open_mainfile(filepath=str(older))
     scene = bpy.context.scene
     assert (scene.atmos.quality, scene.atmos.multiple_scattering) == ("FAST", False)
     assert scene.atmos.ozone_column_du == 0.0
+    np.testing.assert_allclose(scene.atmos.wavelengths_nm, [680.0, 550.0, 440.0])  # the channels it was saved with
+    np.testing.assert_allclose(scene.atmos.sun_irradiance_top, [4.5, 4.5, 4.5])
+    np.testing.assert_allclose(scene.atmos.rayleigh_scattering_per_km, [0.004848, 0.011488, 0.028712], rtol=1e-3)
     assert facts.plan_of(scene).level == "fast"
 
     bpy.ops.wm.read_factory_settings(use_empty=True)   # a new scene that never enabled Atmos gets today's defaults
     assert (bpy.context.scene.atmos.quality, bpy.context.scene.atmos.multiple_scattering) == ("PRECISE", True)
     assert bpy.context.scene.atmos.ozone_column_du == pytest.approx(300.0)
+    np.testing.assert_allclose(bpy.context.scene.atmos.wavelengths_nm, [648.1, 547.4, 443.1], rtol=1e-6)

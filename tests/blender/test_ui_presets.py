@@ -27,6 +27,7 @@ from atmos_addon import plan as plan_module
 from atmos_addon import presets
 from atmos_addon.blender.ui import contact_sheet, preset_ops, panel as ui_panel
 from atmos_addon.blender import orchestrator, registration, scene_reading, settings_io
+from atmos_addon.physics.visibility import extinction_550_per_m
 
 from render_utils import EEVEE_ENGINE, ENGINES, make_camera, make_plane, render_to_array, set_engine
 
@@ -461,9 +462,9 @@ def test_haze_and_air_density_read_and_write_the_coefficients(user_presets):
     settings = bpy.context.scene.atmos
     bpy.ops.atmos.preset_apply(name="clear")
     assert settings.air_density == pytest.approx(1.0, rel=1e-5)
-    clear = presets.load("clear").atmosphere  # channel 1 is 550 nm
-    extinction_550 = clear.rayleigh_scattering[1] + clear.mie_scattering[1] + clear.mie_absorption[1]
-    assert settings.haze_visibility == pytest.approx(3.912 / extinction_550, rel=1e-5)
+    clear = presets.load("clear").atmosphere  # the channels stand for 648.1, 547.4, 443.1 nm: read at 550 nm
+    assert settings.haze_visibility == pytest.approx(3.912 / extinction_550_per_m(clear), rel=1e-5)
+    assert settings.haze_visibility == pytest.approx(70_000.0, rel=2e-4)  # the preset's stated visibility
     ratio = np.divide(settings.mie_absorption_per_km, settings.mie_scattering_per_km)
     settings.haze_visibility = 10000.0
     assert settings.haze_visibility == pytest.approx(10000.0, rel=1e-4)

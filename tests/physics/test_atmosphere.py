@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 
 from atmos_addon.physics import Atmosphere
+from atmos_addon.physics.spectrum import LINEAR_REC709_TO_XYZ, SUN_TOP_RGB
+from atmos_addon.physics.visibility import visibility_m
 
 
 def test_defaults_are_a_clear_earth_sky():
@@ -14,10 +16,14 @@ def test_defaults_are_a_clear_earth_sky():
     assert atm.planet_radius == 6_360_000.0 and atm.atmosphere_height == 100_000.0
     assert atm.mie_scale_height == 1200.0
     np.testing.assert_array_equal(atm.mie_g, [0.76, 0.76, 0.76])
-    np.testing.assert_array_equal(atm.wavelengths_nm, [680.0, 550.0, 440.0])
+    np.testing.assert_array_equal(atm.wavelengths_nm, [648.1, 547.4, 443.1])  # Rec.709's channels under sunlight
+    # The sun above the atmosphere: the solar spectrum's colour (slightly warm) at luminance 4.5.
+    np.testing.assert_allclose(atm.sun_irradiance_top, 4.5 * SUN_TOP_RGB, rtol=1e-12)
+    assert float(LINEAR_REC709_TO_XYZ[1] @ atm.sun_irradiance_top) == pytest.approx(4.5, rel=1e-9)
+    assert atm.sun_irradiance_top[0] > atm.sun_irradiance_top[1] > atm.sun_irradiance_top[2]
     # Rayleigh grows toward blue; Koschmieder visibility 3.912 / beta_ex at 550 nm of 50-100 km.
     assert atm.rayleigh_scattering[0] < atm.rayleigh_scattering[1] < atm.rayleigh_scattering[2]
-    assert 50e3 < 3.912 / atm.extinction_coefficient[1] < 100e3
+    assert 50e3 < visibility_m(atm) < 100e3
     np.testing.assert_allclose(atm.extinction_coefficient,
                                atm.rayleigh_scattering + atm.mie_scattering + atm.mie_absorption)
     np.testing.assert_allclose(atm.scattering_coefficient, atm.rayleigh_scattering + atm.mie_scattering)

@@ -16,6 +16,7 @@ from atmos_addon import presets
 from atmos_addon.physics import extinction, sun_irradiance_ground
 from atmos_addon.physics.atmosphere import Atmosphere
 from atmos_addon.physics.rayleigh import rayleigh_coefficients
+from atmos_addon.physics.visibility import extinction_550_per_m
 from atmos_addon.presets import Preset, PresetError, schema
 
 BUILTINS = ("clear", "overcast", "sunset", "mars")
@@ -285,9 +286,8 @@ def test_library_file_name_must_match_preset_name(tmp_path):
 
 
 def _visibility_m(atm: Atmosphere) -> float:
-    """Koschmieder meteorological visibility V = 3.912 / beta_ex at 550 nm (the G channel), m."""
-    assert atm.wavelengths_nm[1] == 550.0
-    return KOSCHMIEDER / atm.extinction_coefficient[1]
+    """Koschmieder meteorological visibility V = 3.912 / beta_ex at 550 nm (each species read at 550 nm), m."""
+    return KOSCHMIEDER / extinction_550_per_m(atm)
 
 
 def test_stated_visibilities():
@@ -369,13 +369,15 @@ def test_mars_sunset_glow_is_blue():
 
 def test_overcast_is_grey_and_low_contrast():
     overcast, clear = presets.load("overcast").atmosphere, presets.load("clear").atmosphere
+    # Grey: the sky keeps the colour of the sun above the atmosphere (slightly warm, the solar spectrum's).
     for view in ((90.0, 0.0), (30.0, 90.0), (10.0, 180.0), (45.0, 0.0), (5.0, 30.0)):
-        sky = _sky(overcast, 45.0, *view)
+        sky = _sky(overcast, 45.0, *view) / overcast.sun_irradiance_top
         assert sky.max() / sky.min() < 1.4
     for view in ((90.0, 0.0), (30.0, 90.0), (10.0, 180.0)):  # away from the sun's (white in both) aureole
-        sky, blue = _sky(overcast, 45.0, *view), _sky(clear, 45.0, *view)
+        sky = _sky(overcast, 45.0, *view) / overcast.sun_irradiance_top
+        blue = _sky(clear, 45.0, *view) / clear.sun_irradiance_top
         assert sky.max() / sky.min() < 0.6 * (blue.max() / blue.min())
-    zenith = _sky(overcast, 45.0, 90.0, 0.0)
+    zenith = _sky(overcast, 45.0, 90.0, 0.0) / overcast.sun_irradiance_top
     assert zenith.max() / zenith.min() < 1.2
     assert np.all(extinction(5000.0, overcast) < 0.5)  # a black object 5 km away keeps under half its contrast
 

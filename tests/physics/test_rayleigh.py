@@ -36,7 +36,7 @@ def test_coefficients_scale_with_number_density_and_lambda_minus_four():
 def test_default_atmosphere_uses_column_consistent_scale_height():
     atm = Atmosphere()
     assert atm.rayleigh_scale_height == pytest.approx(8434.5, abs=1.0)
-    np.testing.assert_allclose(atm.rayleigh_scattering, rayleigh_coefficients([680.0, 550.0, 440.0]))
+    np.testing.assert_allclose(atm.rayleigh_scattering, rayleigh_coefficients([648.1, 547.4, 443.1]))
 
 
 def test_wavelength_outside_dispersion_range_is_rejected():

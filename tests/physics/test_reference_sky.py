@@ -16,8 +16,9 @@ from atmos_addon.physics.spectral_reference import (N_TRIPLES, RGB_WEIGHTS, TRIP
                                                     ratio_and_stderr, spectral_coefficients, spectral_radiance,
                                                     spectral_sky, triple_atmospheres)
 from atmos_addon.physics.spectrum import (CIE_1931_XYZ_BAR, SOLAR_IRRADIANCE_TOP_W_M2_NM, WAVELENGTHS_NM,
-                                          chromaticity_xy, ozone_absorption_per_m, spectrum_to_linear_rec709,
-                                          spectrum_to_xyz, xyz_to_linear_rec709)
+                                          channel_value_at, chromaticity_xy, ozone_absorption_per_m,
+                                          rayleigh_spectrum_per_m, spectrum_to_linear_rec709, spectrum_to_xyz,
+                                          xyz_to_linear_rec709)
 
 ZENITH = np.array([0.0, 0.0, 1.0])
 
@@ -53,11 +54,12 @@ def test_spectral_atmosphere_passes_through_the_clear_preset(clear):
     assert fit["single_scattering_albedo"] == pytest.approx(0.93, abs=1e-4)
     assert fit["g"] == pytest.approx(0.76)
     spectra = spectral_coefficients(clear)
-    for channel, wavelength in enumerate((680, 550, 440)):  # the preset's own channels are reproduced
-        assert spectra["rayleigh_scattering"][at(wavelength)] == pytest.approx(clear.rayleigh_scattering[channel],
-                                                                               rel=1e-12)
-        assert spectra["mie_scattering"][at(wavelength)] == pytest.approx(clear.mie_scattering[channel], rel=2e-3)
-        assert spectra["mie_absorption"][at(wavelength)] == pytest.approx(clear.mie_absorption[channel], rel=2e-3)
+    np.testing.assert_allclose(spectra["rayleigh_scattering"], rayleigh_spectrum_per_m(), rtol=1e-12)  # standard air
+    for channel, wavelength in enumerate(clear.wavelengths_nm):  # the preset's own channels are reproduced
+        assert channel_value_at(wavelength, WAVELENGTHS_NM, spectra["mie_scattering"]) == pytest.approx(
+            clear.mie_scattering[channel], rel=2e-3)
+        assert channel_value_at(wavelength, WAVELENGTHS_NM, spectra["mie_absorption"]) == pytest.approx(
+            clear.mie_absorption[channel], rel=2e-3)
 
 
 def test_ozone_callback_is_the_spectral_ozone_at_the_triples_wavelengths():
