@@ -16,8 +16,8 @@ Default: a clear Earth sky.
   the seed's 680 / 550 / 440 nm make the sky 25-31 % too blue).
 * A light continental haze: grey Mie scattering 3.3e-5 1/m and absorption 3.3e-6 1/m (single-scattering
   albedo 0.91), scale height 1200 m, Henyey-Greenstein g = 0.76 (Bruneton & Neyret 2008). Vertical aerosol
-  optical depth 0.044; with the Rayleigh term the 550 nm extinction is 4.5e-5 1/m, a meteorological
-  visibility 3.912 / beta_ex of about 88 km (Koschmieder).
+  optical depth 0.044; with the Rayleigh term and the haze's absorption the 550 nm extinction is 4.8e-5 1/m, a
+  meteorological visibility 3.912 / beta_ex of about 82 km (Koschmieder).
 * No ozone (``ozone_column_du`` = 0): the seed's atmosphere. The product's Earth presets carry 300 DU, the
   Earth's mean column, in a tent-shaped layer between 10 and 40 km (:meth:`Atmosphere.ozone_density`, the
   profile of Bruneton 2017). Ozone absorbs and does not scatter; its cross-section per channel is the

@@ -364,9 +364,9 @@ def channel_wavelengths_nm() -> np.ndarray:
     Three channels cannot follow a spectrum, but they can be exact where it matters most: in the optically thin
     limit a sky of Rayleigh scattering renders the colour of the full spectrum when each channel's coefficient is
     that band mean. The customary 680 / 550 / 440 nm (Bruneton 2008, Hillaire 2020) put red on the channel's
-    long-wavelength tail and give a sky 25 % too blue in B/R (the red channel's negative lobe in the blue-green
-    lowers its mean coefficient less than 680 nm does). An Angstrom aerosol evaluated at these wavelengths is
-    within 1.1 % of its own band mean for alpha = 1.3.
+    long-wavelength tail (its sunlit response peaks near 600 nm): red's coefficient comes out 18 % below its band
+    mean and a thin sky 25 % too blue in B/R. An Angstrom aerosol evaluated at these wavelengths is within 1.1 % of
+    its own band mean for alpha = 1.3.
     """
     band_mean = rayleigh_spectrum_per_m() @ channel_response_weights()
     return np.round([_wavelength_of_rayleigh_coefficient(float(value)) for value in band_mean], 1)
