@@ -20,11 +20,10 @@ import numpy as np
 
 from ..physics import rayleigh_coefficients
 from ..physics.spectrum import channel_value_at
+from ..physics.visibility import VISIBILITY_WAVELENGTH_NM, extinction_at_550
 
 #: -ln(0.02): the 2 % contrast threshold of Koschmieder's visibility.
 KOSCHMIEDER = 3.912
-#: Wavelength at which visibility is defined, nm.
-VISIBILITY_WAVELENGTH_NM = 550.0
 #: Visibility reported when the air does not attenuate at all, m (a finite stand-in for infinity).
 MAX_VISIBILITY_M = 1.0e9
 #: Absorption / scattering ratio given to haze that has none to copy (the clear default: albedo 0.91).
@@ -39,8 +38,8 @@ def _at_550(settings, values) -> float:
 
 def extinction_550_per_m(settings) -> float:
     """Sea-level extinction coefficient at 550 nm, 1/m (settings hold 1/km), each species read at 550 nm."""
-    return sum(_at_550(settings, getattr(settings, name)) for name in
-               ("rayleigh_scattering_per_km", "mie_scattering_per_km", "mie_absorption_per_km")) / 1000.0
+    return extinction_at_550(settings.wavelengths_nm, settings.rayleigh_scattering_per_km,
+                             settings.mie_scattering_per_km, settings.mie_absorption_per_km) / 1000.0
 
 
 def visibility_m(settings) -> float:

@@ -54,11 +54,16 @@ VISIBILITY_WAVELENGTH_NM = 550.0
 LEVELS = ("fast", "balanced", "precise", "precise+ms")
 
 
-def extinction_550_per_m(atm: Atmosphere) -> float:
-    """Sea-level extinction coefficient of ``atm`` at 550 nm, 1/m: each species read at 550 nm from its channels
+def extinction_at_550(channel_wavelengths_nm: ArrayLike, *species: ArrayLike) -> float:
+    """The sum of per-channel coefficients (any one unit), each species read at 550 nm from its channels
     (:func:`~atmos_addon.physics.spectrum.channel_value_at`; the G channel stands for 547.4 nm)."""
-    return sum(channel_value_at(VISIBILITY_WAVELENGTH_NM, atm.wavelengths_nm, values)
-               for values in (atm.rayleigh_scattering, atm.mie_scattering, atm.mie_absorption))
+    return sum(channel_value_at(VISIBILITY_WAVELENGTH_NM, channel_wavelengths_nm, values) for values in species)
+
+
+def extinction_550_per_m(atm: Atmosphere) -> float:
+    """Sea-level extinction coefficient of ``atm`` at 550 nm, 1/m (:func:`extinction_at_550` of its Rayleigh
+    scattering, aerosol scattering and aerosol absorption)."""
+    return extinction_at_550(atm.wavelengths_nm, atm.rayleigh_scattering, atm.mie_scattering, atm.mie_absorption)
 
 
 def visibility_m(atm: Atmosphere) -> float:
