@@ -33,6 +33,7 @@ def on_depsgraph_update(scene, depsgraph) -> None:
     if orchestrator.mode_mismatch(scene):  # the render engine or the mode changed: switch Compositor <-> In-Render
         orchestrator.enable_effect(scene)
         return
+    edited = materials.edited_materials(depsgraph)   # first: what follows may free the updates' evaluated copies
     key_tiles = scene.get(facts.KEY_TILES)
     if sync.sun_moved(scene):
         orchestrator.update(scene)
@@ -41,8 +42,8 @@ def on_depsgraph_update(scene, depsgraph) -> None:
     elif any(depsgraph.id_type_updated(kind) for kind in ("ACTION", "OBJECT", "SCENE")):
         sun_bake.follow(scene)   # keys edited at other frames, a parent or a target moved, the frame range changed
     orchestrator.follow_key_tiles(scene, key_tiles)   # an animation that started or stopped: blend or not
-    if depsgraph.id_type_updated("MATERIAL"):
-        materials.follow_edits(depsgraph)   # a surface Cycles folds away stays opaque
+    if edited:
+        materials.follow_edits(edited)   # a surface Cycles folds away stays opaque
     if orchestrator.note_counts(scene):
         orchestrator.pick_up_new_materials(scene)
 

@@ -303,16 +303,30 @@ def keep_opaque(material, present: list | None = None, output=False, link=False,
     return True
 
 
-def follow_edits(depsgraph) -> None:
-    """After edits: keep the edited materials that carry the AOV group opaque where their surface now folds away,
-    and drop the opaque-keeping nodes where it no longer does (:func:`keep_opaque`; In-Render materials have their
-    own Cycles output and are left alone)."""
+def edited_materials(depsgraph) -> list:
+    """The original materials that carry the AOV group among ``depsgraph``'s updates.
+
+    Read before the handler changes any data: the updates point at the depsgraph's evaluated copies, and rebuilding
+    a node group or an image in the same handler (a sun bake, key tiles that start to blend) can free them, so
+    reading ``update.id`` afterwards reads freed memory (Blender 5.2.3 crashed there in CI)."""
+    if not depsgraph.id_type_updated("MATERIAL"):
+        return []
+    found = []
     for update in depsgraph.updates:
         material = getattr(update.id, "original", None)
         if not isinstance(material, bpy.types.Material) or material.node_tree is None or material.library:
             continue
         if any(node.get(TAG) == 1 and node.bl_idname == "ShaderNodeGroup" for node in material.node_tree.nodes):
-            keep_opaque(material)
+            found.append(material)
+    return found
+
+
+def follow_edits(edited) -> None:
+    """After edits: keep the ``edited`` materials (:func:`edited_materials`) opaque where their surface now folds
+    away, and drop the opaque-keeping nodes where it no longer does (:func:`keep_opaque`; In-Render materials have
+    their own Cycles output and are left alone)."""
+    for material in edited:
+        keep_opaque(material)
 
 
 def _stand_in():
