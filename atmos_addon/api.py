@@ -17,6 +17,7 @@ import math
 from typing import Any
 
 from . import presets as _presets
+from .plan import RETIRED_BALANCED_NOTE
 
 
 class AtmosError(ValueError):
@@ -43,12 +44,23 @@ def _check_overrides(scene, overrides: dict[str, Any]) -> None:
         values = list(value) if size else [value]
         if size and len(values) != size:
             raise AtmosError(f"setting '{key}' needs {size} values, got {len(values)}")
+        if prop.type == "ENUM":
+            _check_choice(key, value, [item.identifier for item in prop.enum_items])
         if prop.type in {"FLOAT", "INT"}:
             for v in values:
                 if not isinstance(v, (int, float)) or not math.isfinite(v):
                     raise AtmosError(f"setting '{key}' must be a finite number, got {v!r}")
                 if v < prop.hard_min or v > prop.hard_max:
                     raise AtmosError(f"setting '{key}' = {v!r} is outside [{prop.hard_min:g}, {prop.hard_max:g}]")
+
+
+def _check_choice(key: str, value, choices: list[str]) -> None:
+    """An enum setting's value must be one of ``choices``; the retired Balanced quality says what replaced it."""
+    if key == "quality" and str(value).upper() == "BALANCED":
+        raise AtmosError(f"quality 'BALANCED': {RETIRED_BALANCED_NOTE}; use 'PRECISE' (the default, every scattering "
+                         "order) or 'FAST' (what a file saved at Balanced opens with)")
+    if value not in choices:
+        raise AtmosError(f"setting '{key}' must be one of {', '.join(repr(c) for c in choices)}; got {value!r}")
 
 
 def _check_sun(elevation_deg: float | None, azimuth_deg: float | None) -> None:

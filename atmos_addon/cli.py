@@ -25,10 +25,11 @@ from pathlib import Path
 
 from . import api
 from . import presets as preset_library
+from .plan import RETIRED_BALANCED_NOTE
 
 SAMPLE_SCENES = ("valley", "mars")
 ENGINES = ("cycles", "eevee")
-QUALITY_LEVELS = ("fast", "balanced", "precise", "auto")
+QUALITY_LEVELS = ("fast", "precise", "auto")
 #: --mode values and the scene setting each selects (``scene.atmos.render_mode``).
 MODES = {"compositor": "COMPOSITOR", "per-pixel": "PER_PIXEL", "in-render": "IN_RENDER"}
 EXIT_ERROR = 2
@@ -82,6 +83,16 @@ def _degrees(low: float, high: float):
             raise argparse.ArgumentTypeError(f"{value:g} degrees is outside [{low:g}, {high:g}]")
         return value
     return parse
+
+
+def _quality(text: str) -> str:
+    value = text.strip().lower()
+    if value == "balanced":
+        raise argparse.ArgumentTypeError(f"'balanced': {RETIRED_BALANCED_NOTE}; use precise (every scattering "
+                                         "order) or fast")
+    if value not in QUALITY_LEVELS:
+        raise argparse.ArgumentTypeError(f"'{text}' is not one of {', '.join(QUALITY_LEVELS)}")
+    return value
 
 
 def _positive_int(text: str) -> int:
@@ -366,12 +377,11 @@ def _add_effect_options(parser: argparse.ArgumentParser) -> None:
                              "evaluated once per pixel in the compositor, no per-sample cost) or in-render (Cycles: "
                              "exact per ray segment, reflections and refractions included); default: the scene's "
                              "setting")
-    parser.add_argument("--quality", choices=QUALITY_LEVELS,
-                        help="accuracy level: fast (constant density, Hoffman & Preetham 2002), balanced (density "
-                             "falling with altitude along the curved ray: drones, aircraft, mountains), precise "
-                             "(numerically integrated, baked into a packed table image: key tiles along a moving "
-                             "camera's or sun's path) or auto (the cheapest level within 2%% for the scene); "
-                             "default: the scene's setting")
+    parser.add_argument("--quality", type=_quality, metavar="{" + ",".join(QUALITY_LEVELS) + "}",
+                        help="accuracy level: fast (constant density, single scattering, Hoffman & Preetham 2002), "
+                             "precise (numerically integrated over the curved planet with every scattering order, "
+                             "baked into a packed table image: key tiles along a moving camera's or sun's path) or "
+                             "auto (the cheapest level within 2%% for the scene); default: the scene's setting")
 
 
 def build_parser() -> argparse.ArgumentParser:

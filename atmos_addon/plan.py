@@ -12,9 +12,9 @@ fallback is decided here, once, with the sentence that explains it:
   In-Render (Cycles: haze volumes and per-segment emission). In-Render asked for in another engine renders with the
   Compositor mode. Cycles with Open Shading Language writes no shader AOVs (measured: they come out empty), so
   there the Compositor and Per Pixel modes render In-Render instead.
-- **Level.** Fast, Balanced or Precise; Auto's last choice for Auto (made from a summary of the scene, outside the
-  plan). In-Render evaluates every ray segment at the Fast level: a reflected ray does not start at the camera,
-  whose altitude the Balanced graph takes from the camera ray.
+- **Level.** Fast or Precise; Auto's last choice for Auto (made from a summary of the scene, outside the plan).
+  In-Render evaluates every ray segment at the Fast level: a reflected ray does not start at the camera, around
+  which the Precise table is baked.
 - **Key tiles.** At the Precise level a camera or sun that moves over time gets key tiles along its path (the
   table holds several): every lookup of the aerial, sky and lighting groups then blends the frame's two keys, which
   doubles their texel fetches; a still scene's single tile is read directly.
@@ -32,8 +32,14 @@ from dataclasses import dataclass
 MODES = ("COMPOSITOR", "PER_PIXEL", "IN_RENDER")
 #: The modes whose materials write AOVs that the compositor reads.
 AOV_MODES = ("COMPOSITOR", "PER_PIXEL")
-QUALITIES = ("FAST", "BALANCED", "PRECISE", "AUTO")
-LEVELS = ("fast", "balanced", "precise")
+QUALITIES = ("FAST", "PRECISE", "AUTO")
+#: The levels a scene's aerial perspective is built at (Balanced was retired in December 2026: against the complete
+#: reference it was no more accurate than Fast at Precise's cost; a file saved with it opens at Fast, which shares
+#: its sky: ``blender.migration``).
+LEVELS = ("fast", "precise")
+#: Why "balanced" is no longer a quality (the migration's console note, the CLI's and the API's refusals).
+RETIRED_BALANCED_NOTE = ("the Balanced quality level was retired in December 2026 (against every scattering order "
+                         "it was no more accurate than Fast, at Precise's cost)")
 EEVEE_ENGINES = frozenset({"BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"})
 
 #: The view-layer AOVs (name, kind). Compositor mode: the per-sample transmittance and in-scattering and the
@@ -117,7 +123,7 @@ class Plan:
 
     @property
     def aerial_key(self) -> str:
-        """The aerial feature key the node groups are stamped with: "rayleigh+mie+abs", "rayleigh+balanced"..."""
+        """The aerial feature key the node groups are stamped with: "rayleigh+mie+abs", "rayleigh+mie+abs+precise"..."""
         return ("rayleigh" + ("+mie" if self.mie else "") + ("+abs" if self.absorption else "")
                 + ("" if self.level == "fast" else f"+{self.level}") + ("+blend" if self.blend else ""))
 

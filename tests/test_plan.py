@@ -82,8 +82,9 @@ def test_the_eevee_clip_range_note():
 
 
 def test_features_and_keys():
-    facts = SceneFacts(quality="BALANCED", mie=False)
-    assert plan_for(facts).aerial_key == "rayleigh+abs+balanced"
+    assert plan_for(SceneFacts(quality="PRECISE", mie=False)).aerial_key == "rayleigh+abs+precise"
+    with pytest.raises(ValueError, match="quality"):   # retired in December 2026 (files upgrade: migration)
+        SceneFacts(quality="BALANCED")
     assert plan_for(SceneFacts(quality="FAST")).aerial_key == "rayleigh+mie+abs"
     assert plan_for(SceneFacts()).aerial_key == "rayleigh+mie+abs+precise", "the default is the complete model"
     assert plan_for(SceneFacts(quality="PRECISE", absorption=False)).aerial_key == "rayleigh+mie+precise"

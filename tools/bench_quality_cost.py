@@ -1,14 +1,14 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Render cost of each quality level on the sample valley: effect off, Fast, Balanced; Cycles and Eevee.
+"""Render cost of each quality level on the sample valley: effect off, Fast, Precise; Cycles and Eevee.
 
     .venv/bpy-5.2.3/bin/python tools/bench_quality_cost.py [--engines cycles,eevee] [--resolution 320x180]
         [--samples 64] [--repeats 3] [--decompose] [--only off,fast-per-pixel-aerial-only,...]
 
 Method. The valley (``atmos_addon/sample_scenes/valley.py``) is built once and rendered in Compositor mode (the mode both
 engines share) with ``api.enable(scene, preset, quality=...)``: "off" is the effect disabled (the valley's
-plain world), "fast" and "balanced" the two levels (the Atmos sky is the same for both). Cycles renders on the
-CPU with ``samples`` samples, adaptive sampling off, a fixed seed and denoising off; Eevee with ``samples``
-TAA samples. Each repeat renders the three configurations once, the order rotated from one repeat to the
+plain world), "fast" and "precise" the two levels (Balanced, measured here until December 2026, was retired).
+Cycles renders on the CPU with ``samples`` samples, adaptive sampling off, a fixed seed and denoising off; Eevee
+with ``samples`` TAA samples. Each repeat renders the three configurations once, the order rotated from one repeat to the
 next (slow drift of the machine falls on all alike). Before the repeats each configuration renders once
 untimed: Cycles loads its kernels, Eevee compiles the configuration's shaders (reported apart: the first
 render of each configuration). Switching the level changes the tree and Eevee compiles again (its cache did
@@ -17,7 +17,7 @@ same configuration.
 With ``--decompose`` two more configurations split Fast's cost: "fast-sky-only" (Fast enabled, then the
 compositing and the view layer's AOVs switched off, so Cycles drops the aerial nodes and only the Atmos sky
 remains) and "fast-aerial-only" (Fast enabled, then the world's output relinked to the world's own
-Background, so only the aerial group and its compositing remain). "fast-per-pixel", "balanced-per-pixel" and "precise-per-pixel" are
+Background, so only the aerial group and its compositing remain). "fast-per-pixel" and "precise-per-pixel" are
 those levels in Per Pixel mode (the materials write distance and view direction; the compositor evaluates the
 level once per pixel; the node count is the compositor group's), and with ``--decompose`` the "-aerial-only"
 variants of the levels and of their Per Pixel configurations are those configurations without the Atmos sky,
@@ -56,7 +56,7 @@ from atmos_addon import api  # noqa: E402
 from atmos_addon.blender.apply.materials import TAG  # noqa: E402  (the tag on nodes the add-on made)
 from atmos_addon.sample_scenes import valley  # noqa: E402
 
-CONFIGS = ("off", "fast", "fast-per-pixel", "balanced", "balanced-per-pixel", "precise", "precise-per-pixel")
+CONFIGS = ("off", "fast", "fast-per-pixel", "precise", "precise-per-pixel")
 
 
 def eevee_engine_id() -> str:
@@ -86,8 +86,8 @@ def build(args: argparse.Namespace, engine: str):
 
 
 #: The configurations ``--decompose`` adds (see the module docstring).
-DECOMPOSED = ("fast-sky-only", "fast-aerial-only", "fast-per-pixel-aerial-only", "balanced-aerial-only",
-              "balanced-per-pixel-aerial-only", "precise-aerial-only", "precise-per-pixel-aerial-only",
+DECOMPOSED = ("fast-sky-only", "fast-aerial-only", "fast-per-pixel-aerial-only", "precise-aerial-only",
+              "precise-per-pixel-aerial-only",
               "precise-sky-lit", "precise-per-pixel-sky-lit")
 #: The suffix of the configurations whose non-camera rays see the camera's Precise sky (what Atmos did before the
 #: Precise sky view: the A/B of the lighting group).

@@ -50,9 +50,9 @@ def on_depsgraph_update(scene, depsgraph) -> None:
 
 @persistent
 def on_load_post(*_args) -> None:
-    """After a file loads: settings saved before a default changed keep the value they were saved with
-    (:mod:`.migration`); rebuild stale node groups and re-sync every scene with the effect on; subscribe to the
-    render settings again (loading a file clears the message bus).
+    """After a file loads: settings saved before a default changed keep the value they were saved with, retired
+    choices are upgraded (:mod:`.migration`); rebuild stale node groups and re-sync every scene with the effect on;
+    subscribe to the render settings again (loading a file clears the message bus).
 
     A file does not hold the objects' world matrices (Blender keeps them in runtime data): until the depsgraph
     evaluates, every ``matrix_world`` reads the identity, which made the re-sync write a sun at the zenith into
@@ -62,6 +62,8 @@ def on_load_post(*_args) -> None:
         if getattr(scene, "atmos", None) is not None:
             with orchestrator.held(scene):
                 migration.restore_former_defaults(scene.atmos)
+                for note in migration.upgrade_retired_settings(scene):
+                    print(note)
     _evaluate_enabled_scenes()
     orchestrator.resync_all()
     _subscribe()

@@ -9,12 +9,19 @@ the quality, rebuild its node groups and look different). Two rules keep every f
   now on carries the values it renders with, whatever later defaults become.
 - :func:`restore_former_defaults`: after a file loads, a scene with the effect on whose such setting was never set
   was saved before the default changed, so it gets the default it was saved under (:data:`FORMER_DEFAULTS`).
+
+A retired choice is upgraded in place (:func:`upgrade_retired_settings`): the Balanced quality level (December
+2026) opens as Fast, which shares Balanced's sky (the virtual dome), so the file's sky and its other scenes stay as
+they were and only the haze's density profile changes (Precise would re-make the sky: the sky groups are shared by
+the scenes of a file, and the Precise sky is another model).
 """
 
 from __future__ import annotations
 
+from ..nodes import parameters
 from ..physics import rayleigh_coefficients
 from ..physics.atmosphere import SEED_SUN_IRRADIANCE_TOP, SEED_WAVELENGTHS_NM
+from ..plan import RETIRED_BALANCED_NOTE
 
 #: Settings whose default changed, with the default a file saved before the change was made with. December 2026
 #: (issue 27): the default became the complete model, Precise with multiple scattering and 300 DU of ozone; it was
@@ -48,3 +55,32 @@ def restore_former_defaults(settings) -> list[str]:
     for name in restored:
         setattr(settings, name, FORMER_DEFAULTS[name])
     return restored
+
+
+#: The number a file stores for the retired Balanced quality level (the Quality enum's items are numbered).
+RETIRED_BALANCED = 1
+#: What a scene saved at Balanced opens with: Fast, Balanced's sky and single scattering with a constant density
+#: along the ray (against every scattering order both were 48-89 % dark by day: Precise with Multiple Scattering is
+#: the complete atmosphere, the artist's choice to make).
+BALANCED_UPGRADE = {"quality": "FAST"}
+
+
+def upgrade_retired_settings(scene) -> list[str]:
+    """Upgrade a loaded ``scene``'s retired choices in place (whether the effect is on or off): a Quality saved as
+    Balanced becomes :data:`BALANCED_UPGRADE`, Auto's remembered "balanced" choice "fast" (Auto chooses again on
+    the next Refresh), and the Balanced
+    level's shader parameters go (``parameters.clear_retired_parameters``; the effect on only, which owns them).
+    Returns one sentence per scene changed (none for a file saved by this version). The caller holds the update
+    callbacks back and re-syncs afterwards."""
+    settings = scene.atmos
+    notes = []
+    if settings.is_property_set("quality") and settings.get("quality") == RETIRED_BALANCED:
+        for name, value in BALANCED_UPGRADE.items():
+            setattr(settings, name, value)
+        notes.append(f"Atmos: scene '{scene.name}': {RETIRED_BALANCED_NOTE}; it opens at Fast, with the same sky "
+                     "(Precise with Multiple Scattering is the complete atmosphere)")
+    if settings.auto_level == "balanced":
+        settings.auto_level = "fast"
+    if settings.enabled:
+        parameters.clear_retired_parameters(scene)
+    return notes

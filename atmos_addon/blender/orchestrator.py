@@ -124,8 +124,8 @@ def material_group(scene):
     """Get or (re)build the group the plan gives the scene's materials: the aerial perspective group (Compositor
     mode) or the "Atmos In-Render Surface" group (In-Render mode). In the Per Pixel mode the compositor group
     evaluates the atmosphere and the materials need no shader group: the aerial group is returned only when another
-    enabled scene's Compositor mode uses it (None otherwise), so none is built for nothing (at Balanced it is a
-    thousand nodes). Also builds the Per Pixel compositor group and writes the "built" status line."""
+    enabled scene's Compositor mode uses it (None otherwise), so none is built for nothing. Also builds the Per
+    Pixel compositor group and writes the "built" status line."""
     groups = scene_reading.groups()
     aerial = groups.aerial_perspective
     plan = facts.plan_of(scene)

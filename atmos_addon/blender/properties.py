@@ -400,16 +400,17 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         name="Quality",
         description="How the aerial perspective follows the atmosphere's density along each view ray",
         items=(
-            ("FAST", "Fast", "Constant sea-level density along the ray (Hoffman & Preetham 2002): ground-level "
-                             "views of nearby land; the cheapest graph"),
-            ("BALANCED", "Balanced", "Density falling with altitude along the curved ray, in closed form: drones, "
-                                     "aircraft, mountains, distant ranges; about 2.3x the nodes of Fast"),
-            ("PRECISE", "Precise", "Single scattering integrated numerically over the curved planet, baked into "
-                                   "a table image packed into the file (0.5-0.9 s per tile; a moving camera or sun "
-                                   "gets key tiles along its path, blended per frame); "
-                                   "within 1 % of the reference in every bench case"),
+            # Numbered: the file stores the number. 1 was Balanced, retired in December 2026 (a file saved with it
+            # opens at Precise without multiple scattering: migration.upgrade_retired_settings).
+            ("FAST", "Fast", "Constant sea-level density along the ray (Hoffman & Preetham 2002), single "
+                             "scattering: ground-level views of nearby land; the cheapest graph", "", 0),
+            ("PRECISE", "Precise", "Scattering integrated numerically over the curved planet, baked into a table "
+                                   "image packed into the file (0.5-0.9 s per tile; a moving camera or sun gets key "
+                                   "tiles along its path, blended per frame); with Multiple Scattering the complete "
+                                   "atmosphere", "", 2),
             ("AUTO", "Auto", "Pick the cheapest level whose measured error for this scene (camera and geometry "
-                             "heights, view distances, sun) stays under the tolerance; re-evaluated on Refresh"),
+                             "heights, view distances, sun) stays under the tolerance; re-evaluated on Refresh",
+             "", 3),
         ),
         default="PRECISE",
         update=_on_quality,
@@ -435,8 +436,9 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
     )
     origin_altitude: FloatProperty(
         name="Origin Altitude (m)",
-        description="Altitude above sea level of the world origin (z = 0), in metres. Balanced quality thins the "
-                    "air with altitude: a scene modelled around z = 0 on a 1500 m plateau sets 1500",
+        description="Altitude above sea level of the world origin (z = 0), in metres. Precise quality takes the "
+                    "camera's altitude as this plus its height: a scene modelled around z = 0 on a 1500 m plateau "
+                    "sets 1500",
         default=0.0,
         min=-1000.0,
         max=100000.0,

@@ -17,7 +17,7 @@ import numpy as np
 from mathutils import Vector
 
 from ..physics.quality import Level, SceneSummary, choose_level, level_summary, nearest_cases
-from ..plan import NOTE_IN_RENDER_FAST
+from ..plan import LEVELS, NOTE_IN_RENDER_FAST
 from . import facts, scene_reading
 
 #: Object types with geometry the camera sees (their bounding boxes count for the summary).
@@ -83,9 +83,9 @@ def summarize(scene) -> SceneSummary:
 
 
 def level_of(settings) -> str:
-    """The level the node group is built for: "fast", "balanced" or "precise" (Auto's last choice for AUTO)."""
+    """The level the node group is built for: "fast" or "precise" (Auto's last choice for AUTO)."""
     if settings.quality == "AUTO":
-        return settings.auto_level if settings.auto_level in ("fast", "balanced", "precise") else "fast"
+        return settings.auto_level if settings.auto_level in LEVELS else "fast"
     return settings.quality.lower()
 
 
@@ -93,7 +93,7 @@ def resolve(scene) -> str:
     """Resolve Auto for ``scene`` (summary, choice, status line) and return the level the settings ask for.
 
     In-Render mode builds its ray-segment graph with Fast whatever the level (a reflected ray does not start
-    at the camera, whose altitude the Balanced graph takes from the camera ray); the status line says so.
+    at the camera, around which the Precise table is baked); the status line says so.
     """
     settings = scene.atmos
     level = _resolve(scene, settings)
@@ -110,8 +110,7 @@ def _resolve(scene, settings) -> str:
         scene_reading.set_if_changed(settings, "status_quality", line)
         return level_of(settings)
     summary = summarize(scene)
-    per_pixel = facts.plan_of(scene).mode == "PER_PIXEL"   # Balanced's Per Pixel variant is more accurate
-    level, error = choose_level(summary, tolerance=settings.auto_tolerance / 100.0, per_pixel=per_pixel)
+    level, error = choose_level(summary, tolerance=settings.auto_tolerance / 100.0)
     situations = ", ".join(name.replace("_", " ") for name in nearest_cases(summary))
     over = "" if error <= settings.auto_tolerance / 100.0 else f", over {settings.auto_tolerance:g} %"
     line = f"Auto chose {level.value.capitalize()}: {100.0 * error:.1f} %{over} ({situations})"

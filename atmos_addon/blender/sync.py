@@ -15,12 +15,11 @@ import math
 import numpy as np
 
 from ..physics import Atmosphere, sun_irradiance_ground
-from ..physics.balanced import sun_optical_depths_ground
 from ..physics.sun import LUMINANCE_WEIGHTS
 from . import scene_reading
-from .apply import compositor, in_render, sun_lamp, world
+from .apply import in_render, sun_lamp, world
 
-#: Per scene: ((settings values, elevation, sun radius, limb darkening), E_sun, colour, strength, sun depths),
+#: Per scene: ((settings values, elevation, sun radius, limb darkening), E_sun, colour, strength),
 #: the lamp's matrix, the camera's z (caches only; nothing here is needed to restore a file).
 _last_sun_values: dict[str, tuple] = {}
 _last_sun_matrix: dict[str, tuple] = {}
@@ -29,8 +28,8 @@ _last_camera_z: dict[str, float | None] = {}
 
 def _sun_values(scene, key: tuple, atmosphere: Atmosphere, elevation_rad: float, sun_radius: float,
                 limb_darkening: float):
-    """E_sun at the ground, the lamp's colour and strength (as :func:`sun_color_and_strength` splits it) and the
-    sun's ground optical depths (tau_R, tau_M) of the Balanced level, cached."""
+    """E_sun at the ground and the lamp's colour and strength (as :func:`sun_color_and_strength` splits it),
+    cached."""
     sun_key = (key, elevation_rad, sun_radius, limb_darkening)
     cached = _last_sun_values.get(scene.name)
     if cached is not None and cached[0] == sun_key:
@@ -39,9 +38,8 @@ def _sun_values(scene, key: tuple, atmosphere: Atmosphere, elevation_rad: float,
                             dtype=float)
     strength = float(irradiance @ LUMINANCE_WEIGHTS)
     colour = tuple(float(c) for c in irradiance / strength) if strength > 0.0 else (1.0, 1.0, 1.0)
-    depths = sun_optical_depths_ground(elevation_rad, atmosphere, irradiance)
-    _last_sun_values[scene.name] = (sun_key, irradiance, colour, strength, depths)
-    return irradiance, colour, strength, depths
+    _last_sun_values[scene.name] = (sun_key, irradiance, colour, strength)
+    return irradiance, colour, strength
 
 
 def sync_scene(scene) -> None:
@@ -57,7 +55,7 @@ def sync_scene(scene) -> None:
     elevation_rad = math.asin(float(np.clip(direction[2], -1.0, 1.0)))
     diameter = float(settings.sun_angular_diameter)
     sun_radius = 0.5 * diameter
-    irradiance, colour, strength, sun_depths = _sun_values(scene, key, atmosphere, elevation_rad, sun_radius,
+    irradiance, colour, strength = _sun_values(scene, key, atmosphere, elevation_rad, sun_radius,
                                                            float(settings.sun_limb_darkening))
     enabled = settings.enabled
     if enabled and settings.sky_enabled:
@@ -77,9 +75,6 @@ def sync_scene(scene) -> None:
         sun_angular_radius=sun_radius,
         sun_limb_darkening=settings.sun_limb_darkening,
         ground_albedo=tuple(settings.ground_albedo),
-        origin_altitude=float(settings.origin_altitude),
-        sun_optical_depth_rayleigh=sun_depths[0],
-        sun_optical_depth_mie=sun_depths[1],
     )
     scene_reading.set_if_changed(settings, "status_sun", sun_status)
     if enabled and in_render.is_installed(scene):
@@ -120,14 +115,10 @@ def _camera_z(scene) -> float | None:
 
 
 def note_camera(scene) -> bool:
-    """Record the camera's z; True when it changed since the last call. A change also clears the "invalid" flag
-    of the Per Pixel group node's drivers: a camera driver that failed while the scene had no camera reads again
-    (:func:`.compositor.revalidate_drivers`)."""
+    """Record the camera's z; True when it changed since the last call."""
     camera_z = _camera_z(scene)
     changed = camera_z != _last_camera_z.get(scene.name, camera_z)
     _last_camera_z[scene.name] = camera_z
-    if changed:
-        compositor.revalidate_drivers(scene)
     return changed
 
 

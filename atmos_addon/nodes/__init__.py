@@ -3,8 +3,8 @@
 
 The Blender layer (:mod:`atmos_addon.blender`) imports this package and hands it plain numbers and feature
 sets; nothing here imports the Blender layer or the plan. Constants shared with the physics core (the
-Chapman shape, the pieces of the Balanced level, the table shape) are imported from it: one source. Modules: :mod:`.graph` (a builder that writes arithmetic as
-nodes), :mod:`.parameters` (the property names and their writer), :mod:`.aerial_perspective` (the
+Chapman shape, the table shape) are imported from it: one source. Modules: :mod:`.graph` (a builder that writes
+arithmetic as nodes), :mod:`.parameters` (the property names and their writer), :mod:`.aerial_perspective` (the
 "Atmos Aerial Perspective" group, Hoffman & Preetham 2002 eq. 19), :mod:`.dome` (the virtual sky dome both
 groups share), :mod:`.sky` (the "Atmos Sky" world group), :mod:`.sky_lighting` (the same sky from a table, for
 the rays that light the scene).

@@ -43,7 +43,6 @@ import dataclasses
 import bpy
 import numpy as np
 
-from .balanced import balanced_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction, view_direction
 from . import stamps
 from .graph import ArrayBuilder, GraphBuilder
@@ -80,8 +79,6 @@ def aerial_terms(g: GraphBuilder, features: AerialFeatures, distance: str = "VIE
     (:func:`evaluate`). ``distance`` is one of :data:`DISTANCE_SOURCES` (see :func:`distance_m`)."""
     s = distance_m(g, distance)
     view = view_direction(g)
-    if features.level == "balanced":
-        return balanced_terms(g, features, s, view)
     if features.level == "precise":
         return precise_terms(g, features, s, view)
     r_rayleigh, r_mie = dome_distances(g, g.separate(view, label="v")[2])
@@ -94,7 +91,7 @@ def evaluate(features: AerialFeatures, parameter_values, *, distance_units, view
              images=None):
     """What the group computes, in numpy float32: (F_ex, L_in), each (N, 3), for shading points at
     ``distance_units`` (N,) scene units from the camera along the unit ``view_direction`` (N, 3); ``position``
-    (N, 3) scene units is where the Balanced level's altitude comes from, ``images`` the Precise table's pixels
+    (N, 3) scene units is the shading point (the graph's Geometry > Position), ``images`` the Precise table's pixels
     by image name. ``parameter_values`` are :func:`~.parameters.shader_parameter_values`."""
     direction = np.asarray(view_direction, dtype=np.float64)
     inputs = {"view_distance": distance_units, "incoming": -direction,
@@ -140,8 +137,8 @@ def ensure_aerial_perspective_group(features: AerialFeatures = AerialFeatures(),
     if distance not in DISTANCE_SOURCES:
         raise ValueError(f"distance source must be one of {DISTANCE_SOURCES}; got {distance!r}")
     if distance == "RAY":
-        # A ray segment may start anywhere (a mirror, a dome crossing), not at the camera: the Balanced graph's
-        # camera altitude h_P - c s would be wrong there, so the in-render segments use the constant density.
+        # A ray segment may start anywhere (a mirror, a dome crossing), not at the camera: the Precise table is
+        # camera-centred and would be wrong there, so the in-render segments use the constant density.
         features = dataclasses.replace(features, level="fast")
     tree = stamps.group(stamps.AERIAL_SEGMENT if distance == "RAY" else stamps.AERIAL)
     if not is_current(tree, features, distance):
@@ -165,8 +162,7 @@ def describe_features(features: AerialFeatures) -> str:
 
 #: Nodes in the group per feature key for this version (:data:`.stamps.AERIAL`; group output included).
 NODE_COUNTS = {"rayleigh": 47, "rayleigh+abs": 73, "rayleigh+mie": 99, "rayleigh+mie+abs": 101,
-               "rayleigh+balanced": 295, "rayleigh+abs+balanced": 300, "rayleigh+mie+balanced": 325,
-               "rayleigh+mie+abs+balanced": 327, "rayleigh+precise": 174, "rayleigh+abs+precise": 174,
+               "rayleigh+precise": 174, "rayleigh+abs+precise": 174,
                "rayleigh+mie+precise": 241, "rayleigh+mie+abs+precise": 241,
                # key tiles blended (an animated camera or sun): a second texel and a blend per lookup
                "rayleigh+precise+blend": 228, "rayleigh+abs+precise+blend": 228, "rayleigh+mie+precise+blend": 327,

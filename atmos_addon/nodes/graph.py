@@ -539,7 +539,7 @@ _ARRAY_MATH: dict[str, Callable[..., np.ndarray]] = {
 
 class ArrayBuilder(ChannelGraphBuilder):
     """The same equations evaluated in numpy: the functions that build the node groups (``scattering_terms``,
-    ``dome_distances``, ``balanced_terms``...) run on this builder and return arrays instead of sockets, so what a
+    ``dome_distances``, ``precise_terms``...) run on this builder and return arrays instead of sockets, so what a
     group computes is a Python value the tests compare with the physics core and with Blender's renders: one
     source for each equation, evaluated two ways.
 

@@ -23,7 +23,7 @@ from collections.abc import Sequence
 
 import bpy
 
-from ..physics import atmosphere, balanced, precise, sun
+from ..physics import atmosphere, precise, sun
 
 #: Rayleigh scattering coefficient beta_R per channel, 1/m.
 BETA_RAYLEIGH = "atmos_beta_rayleigh"
@@ -49,12 +49,6 @@ SUN_ANGULAR_RADIUS = "atmos_sun_angular_radius"
 SUN_LIMB_DARKENING = "atmos_sun_limb_darkening"
 #: Albedo of the ground the sky shows below the horizon, per channel.
 GROUND_ALBEDO = "atmos_ground_albedo"
-#: Altitude of the world origin (z = 0) above sea level, m (the Balanced level's densities fall with altitude).
-ORIGIN_ALTITUDE = "atmos_origin_altitude"
-#: Optical depth from the ground to space toward the sun, molecules, per channel, capped at 50 (Balanced level).
-SUN_OPTICAL_DEPTH_RAYLEIGH = "atmos_sun_optical_depth_rayleigh"
-#: Optical depth from the ground to space toward the sun, aerosols (extinction), per channel, capped at 50.
-SUN_OPTICAL_DEPTH_MIE = "atmos_sun_optical_depth_mie"
 #: Precise level, per frame: the table tile's texel origin in the image and the camera altitude, (x0 px, y0 px, h_c m).
 PRECISE_TILE = "atmos_precise_tile"
 #: Precise level, per frame: the table's largest distance D, its top altitude and the weight of the next key tile
@@ -65,16 +59,17 @@ PRECISE_ATLAS = "atmos_precise_atlas"
 
 #: The parameters of the aerial-perspective group.
 AERIAL_PARAMETER_NAMES = (BETA_RAYLEIGH, BETA_MIE, BETA_MIE_ABSORPTION, MIE_G, SUN_DIRECTION, SUN_IRRADIANCE,
-                          METRES_PER_UNIT, PLANET_RADIUS, SCALE_HEIGHTS, ORIGIN_ALTITUDE, SUN_OPTICAL_DEPTH_RAYLEIGH,
-                          SUN_OPTICAL_DEPTH_MIE)
-#: The parameters only the Balanced level reads.
-BALANCED_PARAMETER_NAMES = (ORIGIN_ALTITUDE, SUN_OPTICAL_DEPTH_RAYLEIGH, SUN_OPTICAL_DEPTH_MIE)
+                          METRES_PER_UNIT, PLANET_RADIUS, SCALE_HEIGHTS)
+#: Parameters of the Balanced level, retired in December 2026 (the origin's altitude and the sun's ground optical
+#: depths per species): nothing reads or writes them; :func:`clear_shader_parameters` removes them, with their
+#: keys, from files saved before.
+RETIRED_PARAMETER_NAMES = ("atmos_origin_altitude", "atmos_sun_optical_depth_rayleigh", "atmos_sun_optical_depth_mie")
 #: The parameters only the Precise level reads (written by the add-on's table bake, keyed with constant
 #: interpolation when the camera or the sun moves, never by :func:`keyframe_shader_parameters`).
 PRECISE_PARAMETER_NAMES = (PRECISE_TILE, PRECISE_SCALE, PRECISE_ATLAS)
 #: The parameters that change with the sun (its direction and what its elevation sets): the only ones an animated
 #: sun's bake keys per frame. The others follow the settings, so a slider edit is not overridden by old keys.
-SUN_PARAMETER_NAMES = (SUN_DIRECTION, SUN_IRRADIANCE, SUN_OPTICAL_DEPTH_RAYLEIGH, SUN_OPTICAL_DEPTH_MIE)
+SUN_PARAMETER_NAMES = (SUN_DIRECTION, SUN_IRRADIANCE)
 #: Every parameter name, in the order of :func:`write_shader_parameters`' arguments, then the Precise ones.
 PARAMETER_NAMES = (*AERIAL_PARAMETER_NAMES, SUN_ANGULAR_RADIUS, SUN_LIMB_DARKENING, GROUND_ALBEDO,
                    *PRECISE_PARAMETER_NAMES)
@@ -89,8 +84,6 @@ DEFAULT_SUN_LIMB_DARKENING = sun.SUN_LIMB_DARKENING
 DEFAULT_GROUND_ALBEDO = precise.DEFAULT_GROUND_ALBEDO
 #: |g| is kept below this so the Henyey-Greenstein phase stays finite in float32.
 MAX_ABS_MIE_G = 0.999
-#: Cap on the sun's optical depths: inf when the sun is set.
-MAX_SUN_OPTICAL_DEPTH = balanced.MAX_SUN_OPTICAL_DEPTH
 
 
 def _triple(name: str, value: Sequence[float] | float) -> tuple[float, float, float]:
@@ -122,17 +115,14 @@ def shader_parameter_values(*, beta_rayleigh: Sequence[float], beta_mie: Sequenc
                             mie_scale_height: float = DEFAULT_MIE_SCALE_HEIGHT_M,
                             sun_angular_radius: float = DEFAULT_SUN_ANGULAR_RADIUS_RAD,
                             sun_limb_darkening: float = DEFAULT_SUN_LIMB_DARKENING,
-                            ground_albedo: Sequence[float] | float = DEFAULT_GROUND_ALBEDO,
-                            origin_altitude: float = 0.0,
-                            sun_optical_depth_rayleigh: Sequence[float] | float = 0.0,
-                            sun_optical_depth_mie: Sequence[float] | float = 0.0) -> dict[str, tuple | float]:
+                            ground_albedo: Sequence[float] | float = DEFAULT_GROUND_ALBEDO
+                            ) -> dict[str, tuple | float]:
     """The aerial-perspective and sky parameters by property name, checked (plain numbers in): what
     :func:`write_shader_parameters` stores and what :class:`~.graph.ArrayBuilder` evaluates the groups with.
 
     ``sun_direction`` is normalised here; ``mie_g`` is clamped to +-:data:`MAX_ABS_MIE_G`. Lengths are m,
     the sun's angular radius rad (in (0, pi/2)), the limb darkening in [0, 1]. The keyword arguments with
-    defaults (Earth, the real sun) were added with the sky, the origin altitude (m) and the sun's ground optical
-    depths (capped here at :data:`MAX_SUN_OPTICAL_DEPTH`) with the Balanced level; older callers keep working.
+    defaults (Earth, the real sun) were added with the sky; older callers keep working.
     Raises ValueError naming the parameter when a value is not finite, a coefficient is negative, the sun
     direction has zero length, a length is not > 0 or an angle is out of range.
     """
@@ -158,11 +148,6 @@ def shader_parameter_values(*, beta_rayleigh: Sequence[float], beta_mie: Sequenc
         SUN_ANGULAR_RADIUS: _in_range(SUN_ANGULAR_RADIUS, sun_angular_radius, 0.0, 0.5 * math.pi, open_low=True),
         SUN_LIMB_DARKENING: _in_range(SUN_LIMB_DARKENING, sun_limb_darkening, 0.0, 1.0),
         GROUND_ALBEDO: _nonnegative(GROUND_ALBEDO, ground_albedo),
-        ORIGIN_ALTITUDE: _finite(ORIGIN_ALTITUDE, origin_altitude),
-        SUN_OPTICAL_DEPTH_RAYLEIGH: tuple(min(v, MAX_SUN_OPTICAL_DEPTH) for v in _nonnegative(
-            SUN_OPTICAL_DEPTH_RAYLEIGH, sun_optical_depth_rayleigh)),
-        SUN_OPTICAL_DEPTH_MIE: tuple(min(v, MAX_SUN_OPTICAL_DEPTH) for v in _nonnegative(
-            SUN_OPTICAL_DEPTH_MIE, sun_optical_depth_mie)),
     }
     return values
 
@@ -174,14 +159,6 @@ def write_shader_parameters(scene: bpy.types.Scene, **values) -> None:
         if name not in scene or _as_tuple(scene[name]) != _as_tuple(value):
             scene[name] = value
     scene.update_tag()
-
-
-def _finite(name: str, value: float) -> float:
-    """A finite float (an altitude may be negative: a scene below sea level)."""
-    number = float(value)
-    if not math.isfinite(number):
-        raise ValueError(f"Atmos shader parameter {name}: expected a finite number; got {value!r}")
-    return number
 
 
 def _positive(name: str, value: float) -> float:
@@ -217,15 +194,29 @@ def keyframe_shader_parameters(scene: bpy.types.Scene, frame: float | None = Non
 
 
 def clear_shader_parameters(scene: bpy.types.Scene) -> None:
-    """Remove the parameters (and their animation curves) from ``scene``; the groups then read zeros."""
+    """Remove the parameters (and their animation curves) from ``scene``, the retired ones too
+    (:data:`RETIRED_PARAMETER_NAMES`); the groups then read zeros."""
+    _remove_parameters(scene, PARAMETER_NAMES + RETIRED_PARAMETER_NAMES)
+
+
+def clear_retired_parameters(scene: bpy.types.Scene) -> bool:
+    """Remove :data:`RETIRED_PARAMETER_NAMES` and their keys from ``scene`` (a file saved before they were
+    retired); True when there were any."""
+    present = [name for name in RETIRED_PARAMETER_NAMES if name in scene]
+    if present:
+        _remove_parameters(scene, tuple(present))
+    return bool(present)
+
+
+def _remove_parameters(scene: bpy.types.Scene, names: tuple[str, ...]) -> None:
     animation = scene.animation_data
     if animation is not None and animation.action is not None:
-        for name in PARAMETER_NAMES:
+        for name in names:
             path = f'["{name}"]'
             for fcurve in fcurves_of(animation.action):
                 if fcurve.data_path == path:
                     remove_fcurve(animation.action, fcurve)
-    for name in PARAMETER_NAMES:
+    for name in names:
         if name in scene:
             del scene[name]
     scene.update_tag()

@@ -12,10 +12,6 @@ out of the render: the materials write three AOVs that cost next to nothing per 
 and this compositor group evaluates, per pixel, the mean distance s = 1000 D / C and direction v = V / |V|,
 
     F_ex, L_in = Fast:     eq. 19 on the layered virtual dome (``terms.scattering_terms``)
-                 Balanced: densities falling with altitude along the curved ray (``balanced.balanced_terms``),
-                           from the camera's altitude h0 = max(origin altitude + z_camera * metres per unit, 0),
-                           in its Per Pixel variant: 8 pieces, each seeing the sun at its middle altitude
-                           (``physics.balanced``: nodes are cheap here; the shader keeps 4 for Eevee)
                  Precise:  the frame's baked table (``precise.precise_terms``), its texels fetched by Map UV nodes
                            with nearest filtering and blended bilinearly in the graph, as the shader does
     T = C F_ex,  L = C L_in  ->  the "Atmos Aerial Composite" group: out = Image (T + max(1 - C, 0)) / k + L / k
@@ -29,9 +25,7 @@ docs/silhouettes.md measures both).
 The atmosphere reaches the group as input sockets of the group node (:data:`PARAMETER_SOCKETS`), which the add-on
 drives from the scene's custom properties (the ones the shader groups read): a parameter change edits values,
 a keyed sun animates them, and a farm machine without the add-on evaluates the drivers (single-property
-drivers, no Python). The camera's world z comes the same way, from the scene's active camera
-(``camera.matrix_world[3][2]``: a keyed, parented or constrained camera moves it per frame, and a marker that
-switches cameras switches it). The tree depends only on the features (Mie, absorption, level), stamped like the
+drivers, no Python). The tree depends only on the features (Mie, absorption, level), stamped like the
 shader groups. The Precise table image is the packed one the shader groups sample.
 """
 
@@ -41,7 +35,6 @@ import bpy
 
 from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_VIEW
 from . import parameters, stamps
-from .balanced import PER_PIXEL_PIECES, PER_PIXEL_SUN_AT, balanced_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction
 from .graph import COMPOSITOR_SEPARATE_XYZ, ChannelGraphBuilder
 from .precise import precise_terms
@@ -54,9 +47,9 @@ GROUP_NAME = stamps.PER_PIXEL.name
 FEATURES_KEY = stamps.FEATURES_KEY
 
 #: Levels the group evaluates.
-LEVELS = ("fast", "balanced", "precise")
+LEVELS = ("fast", "precise")
 
-#: (scene custom property, group input socket, components) for every parameter the Fast and Balanced graphs read.
+#: (scene custom property, group input socket, components) for every parameter the Fast graph reads.
 PARAMETER_SOCKETS = (
     (parameters.BETA_RAYLEIGH, "Rayleigh Scattering (1/m)", 3),
     (parameters.BETA_MIE, "Mie Scattering (1/m)", 3),
@@ -67,9 +60,6 @@ PARAMETER_SOCKETS = (
     (parameters.PLANET_RADIUS, "Planet Radius (m)", 1),
     (parameters.SCALE_HEIGHTS, "Scale Heights (m)", 3),
     (parameters.METRES_PER_UNIT, "Metres per Unit", 1),
-    (parameters.ORIGIN_ALTITUDE, "Origin Altitude (m)", 1),
-    (parameters.SUN_OPTICAL_DEPTH_RAYLEIGH, "Sun Optical Depth, Rayleigh", 3),
-    (parameters.SUN_OPTICAL_DEPTH_MIE, "Sun Optical Depth, Mie", 3),
 )
 #: The Precise level's per-frame table parameters (driven only where the group is built at that level: the
 #: scene has them only then).
@@ -78,8 +68,6 @@ PRECISE_SOCKETS = (
     (parameters.PRECISE_SCALE, "Precise Scale (D, top)", 3),
     (parameters.PRECISE_ATLAS, "Precise Atlas Size", 3),
 )
-#: The input fed the scene camera's world z (scene units): (socket, driver path on the scene).
-CAMERA_SOCKET = ("Camera z (units)", "camera.matrix_world[3][2]")
 #: Inputs fed from the Render Layers node: (socket, AOV or pass name, socket type).
 IMAGE_INPUTS = (
     ("Image", "Image", "NodeSocketColor"),
@@ -90,22 +78,25 @@ IMAGE_INPUTS = (
 
 
 def _ensure_interface(tree: bpy.types.NodeTree) -> None:
-    """Create the inputs and the output once; an existing interface is kept (so are the drivers on it)."""
-    names = [item.name for item in tree.interface.items_tree if item.item_type == "SOCKET"]
-    wanted = ([name for name, _, _ in IMAGE_INPUTS] + [name for _, name, _ in PARAMETER_SOCKETS] + [CAMERA_SOCKET[0]]
-              + [name for _, name, _ in PRECISE_SOCKETS] + ["Image"])
-    if names == wanted:
+    """Give ``tree`` the wanted inputs and output, keeping every socket it already has of those (so the links into
+    the group node and the drivers on it stay): sockets no longer wanted are removed (a group saved with the
+    retired Balanced level's camera-z and sun-depth inputs), missing ones added."""
+    wanted = ([("Image", "OUTPUT", "NodeSocketColor")]   # Blender lists the outputs first
+              + [(name, "INPUT", socket_type) for name, _, socket_type in IMAGE_INPUTS]
+              + [(name, "INPUT", "NodeSocketVector" if size == 3 else "NodeSocketFloat")
+                 for _, name, size in PARAMETER_SOCKETS]
+              + [(name, "INPUT", "NodeSocketVector") for _, name, _ in PRECISE_SOCKETS])
+    items = [item for item in tree.interface.items_tree if item.item_type == "SOCKET"]
+    present = [(item.name, item.in_out, item.socket_type) for item in items]
+    if present == wanted:
         return
-    tree.interface.clear()
-    for name, _, socket_type in IMAGE_INPUTS:
-        tree.interface.new_socket(name, in_out="INPUT", socket_type=socket_type)
-    for _, name, size in PARAMETER_SOCKETS:
-        tree.interface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector" if size == 3 else
-                                  "NodeSocketFloat")
-    tree.interface.new_socket(CAMERA_SOCKET[0], in_out="INPUT", socket_type="NodeSocketFloat")
-    for _, name, _ in PRECISE_SOCKETS:
-        tree.interface.new_socket(name, in_out="INPUT", socket_type="NodeSocketVector")
-    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    for item, key in zip(items, present):
+        if key not in wanted or present.count(key) > 1:
+            tree.interface.remove(item)
+            present[present.index(key)] = None
+    for name, in_out, socket_type in wanted:
+        if (name, in_out, socket_type) not in present:
+            tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
 
 
 def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures,
@@ -133,13 +124,7 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
     view = g.normalize(tuple(split_view.outputs[:3]), label="v")
     # Blender's divide gives 0 where nothing wrote (C = 0): s = 0, F_ex = 1, L_in = 0, and T = L = 0 below.
     s = g.mul(g.div(group_in.outputs["Distance"], coverage), DISTANCE_AOV_UNIT_M, label="s (m)")
-    if features.level == "balanced":
-        camera_z = group_in.outputs[CAMERA_SOCKET[0]]
-        h0 = g.max(g.multiply_add(camera_z, g.attribute(parameters.METRES_PER_UNIT),
-                                  g.attribute(parameters.ORIGIN_ALTITUDE)), 0.0, label="h0 (m)")
-        f_ex, l_in = balanced_terms(g, features, s, view, pieces=PER_PIXEL_PIECES, camera_altitude=h0,
-                                    sun_at=PER_PIXEL_SUN_AT)
-    elif features.level == "precise":   # the tile's camera altitude is a parameter: no camera input
+    if features.level == "precise":   # the tile's camera altitude is a parameter
         f_ex, l_in = precise_terms(g, features, s, view)
     else:
         r_rayleigh, r_mie = dome_distances(g, view[2])

@@ -34,7 +34,6 @@ import bpy
 from ..physics.aerial_perspective import SMALL_OPTICAL_DEPTH
 from ..physics.precise import DEFAULT_SHAPE
 from . import parameters
-from .balanced import branch_large
 from .dome import cos_theta_to_sun, sun_direction
 from .graph import GraphBuilder, Socket
 from .terms import phase_henyey_greenstein, phase_rayleigh
@@ -44,6 +43,11 @@ IMAGE_NAME = "Atmos Precise Table"
 #: Table shape the graph samples: the one the core bakes.
 ALTITUDES, AZIMUTHS, DISTANCES = DEFAULT_SHAPE.altitudes, DEFAULT_SHAPE.azimuths, DEFAULT_SHAPE.distances
 
+
+
+def branch_large(g: GraphBuilder, x: Socket, threshold: float) -> Socket:
+    """Per component, 1 where x >= ``threshold`` and 0 below (x >= 0): min(floor(x / threshold), 1)."""
+    return g.min(g.floor(g.scale(x, 1.0 / threshold)), (1.0, 1.0, 1.0), label=f"x >= {threshold:g}")
 
 def table_image() -> bpy.types.Image | None:
     """The baked table image, or None before the first bake (the graph then samples nothing: black)."""
@@ -62,7 +66,7 @@ def _lerp(g: GraphBuilder, low: Socket, high: Socket, fraction: Socket, label: s
 
 def phi1_exact(g: GraphBuilder, x: Socket, exp_minus_x: Socket) -> Socket:
     """phi1(x) = (1 - exp(-x)) / x per component, the series 1 - x/2 + x^2/6 below 1e-3 (x >= 0), picked exactly:
-    m quotient + (1 - m) series with m 0 or 1 and the series taken at min(x, 1e-3). (Balanced's blend
+    m quotient + (1 - m) series with m 0 or 1 and the series taken at min(x, 1e-3). (A blend
     series + m (quotient - series) cancels once x^2/6 dwarfs the quotient: optical depths of thousands, which the
     Precise table's far columns reach.)"""
     small = g.min(x, (SMALL_OPTICAL_DEPTH,) * 3)

@@ -3,7 +3,7 @@
 
 Every group carries three custom properties: its kind (:data:`KIND_KEY`, the kind's name), the version of the
 builder that made it (:data:`VERSION_KEY`) and the key of the features it was built for (:data:`FEATURES_KEY`, e.g.
-"rayleigh+mie+abs+balanced"). A group whose stamp differs from what is asked for is rebuilt in place: the
+"rayleigh+mie+abs+precise"). A group whose stamp differs from what is asked for is rebuilt in place: the
 data-block keeps its identity and interface, so the group nodes in materials, worlds and compositors keep their
 links. Bump a kind's version here when its builder's output changes; :mod:`.registry` lists how each kind is built.
 """

@@ -3,7 +3,7 @@
 the transmittance powers, the phase functions and the layered-dome scattering terms (Hoffman & Preetham 2002,
 eq. 16-19; the group that puts them together is :mod:`.aerial_perspective`, whose docstring derives them).
 
-The Balanced and Precise levels (:mod:`.balanced`, :mod:`.precise`), the sky (:mod:`.sky`, :mod:`.sky_lighting`),
+The Precise level (:mod:`.precise`), the sky (:mod:`.sky`, :mod:`.sky_lighting`),
 the Per Pixel compositor group (:mod:`.per_pixel`) and In-Render mode (:mod:`.in_render`) call these functions
 with their own builder, so every one of them evaluates the very same equations.
 """
@@ -19,9 +19,10 @@ from .graph import GraphBuilder, Socket
 
 
 
-#: Quality levels the group can be built for: the paper's constant density, or densities falling with altitude
-#: along the curved ray (:mod:`.balanced`), or the frame's baked table (:mod:`.precise`).
-LEVELS = ("fast", "balanced", "precise")
+#: Quality levels the group can be built for: the paper's constant density, or the frame's baked table
+#: (:mod:`.precise`). Balanced (densities falling along the curved ray in closed form) was retired in December 2026:
+#: against the complete reference it was no more accurate than Fast at Precise's cost (docs/quality.md).
+LEVELS = ("fast", "precise")
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,7 @@ class AerialFeatures:
 
     @property
     def key(self) -> str:
-        """A stable short name, stamped on the tree: "rayleigh", "rayleigh+mie", "rayleigh+mie+abs+balanced",
+        """A stable short name, stamped on the tree: "rayleigh", "rayleigh+mie", "rayleigh+mie+abs+precise",
         "rayleigh+mie+abs+precise+blend"..."""
         return ("rayleigh" + ("+mie" if self.mie else "") + ("+abs" if self.absorption else "")
                 + ("" if self.level == "fast" else f"+{self.level}") + ("+blend" if self.blend else ""))

@@ -5,7 +5,9 @@ Levels (cheapest first)
     * FAST: Hoffman & Preetham 2002, eq. 19: sea-level densities along the whole ray
       (:mod:`~atmos_addon.physics.aerial_perspective`).
     * BALANCED: exponential densities along the (curved) ray in closed form
-      (:mod:`~atmos_addon.physics.balanced`).
+      (:mod:`~atmos_addon.physics.balanced`). Measured here only: retired from the product in December 2026, off
+      the Pareto front of error against the complete reference versus render time (its worst day error 62 %
+      against Fast's 83 % and Precise + multiple scattering's 3 %, at Precise's cost; docs/quality.md).
     * PRECISE: single scattering integrated numerically over the spherical planet, baked per frame into a
       camera-centred table the shader samples (:mod:`~atmos_addon.physics.precise`), with an optional
       multiple-scattering term (every order; :class:`~atmos_addon.physics.precise.MultipleScatteringTable`).
@@ -37,10 +39,9 @@ Auto rule (:func:`choose_level`)
        if views reach beyond 30 km or the geometry spans more than 500 m of altitude, ground vista
        otherwise), plus the low-sun cases when the sun is below 5 deg or animated.
     2. The expected error of a level is the largest measured pixel error (max over rays and channels,
-       :data:`MEASURED_PIXEL_ERROR`) over those situations; in Per Pixel mode Balanced is its Per Pixel variant
-       (:data:`MEASURED_PIXEL_ERROR_PER_PIXEL`, ``physics.balanced.PER_PIXEL_PIECES``).
-    3. The cheapest implemented level whose expected error is within the tolerance wins; if none is, the
-       implemented level with the smallest expected error.
+       :data:`MEASURED_PIXEL_ERROR`) over those situations.
+    3. The cheapest of the product's levels (:data:`PRODUCT_LEVELS`) whose expected error is within the tolerance
+       wins; if none is, the one with the smallest expected error.
     A scene without haze (``mie_zero``) or absorption uses the same measured errors: the haze, with its
     short scale height, is what the constant-density model gets most wrong, so they are upper bounds.
 """
@@ -77,7 +78,7 @@ class Level(enum.Enum):
 #: lowest and highest case, %: docs/quality.md "Against the complete reference" (``tools/bench_accuracy.py --paths
 #: 4000``). Keyed by level and whether Precise adds its multiple-scattering term.
 DAY_ERROR_PCT = {
-    (Level.FAST, False): (9, 85),
+    (Level.FAST, False): (9, 83),
     (Level.BALANCED, False): (5, 62),
     (Level.PRECISE, False): (5, 62),
     (Level.PRECISE, True): (1, 3),
@@ -104,8 +105,10 @@ def level_summary(level: Level, multiple_scattering: bool, mode: str) -> str:
     return f"{line}, {cost:.1f}x sky cost" if cost is not None else line
 
 
-#: Levels with an evaluator, cheapest first (every level has one): :func:`choose_level` picks among these.
+#: Levels with an evaluator, cheapest first (every level has one): the bench measures these.
 IMPLEMENTED_LEVELS = tuple(Level)
+#: The levels the add-on builds, cheapest first: :func:`choose_level` picks among these.
+PRODUCT_LEVELS = (Level.FAST, Level.PRECISE)
 
 #: Albedo of the grey Lambertian test surface of the pixel error.
 BENCH_ALBEDO = 0.3
@@ -389,7 +392,8 @@ MEASURED_PIXEL_ERROR: dict[tuple[Level, str], float] = {
 }
 
 
-#: Max pixel error of Balanced as the Per Pixel mode evaluates it (``physics.balanced.PER_PIXEL_PIECES`` pieces,
+#: Max pixel error of Balanced (retired from the product; the bench still measures it) as the Per Pixel mode
+#: evaluated it (``physics.balanced.PER_PIXEL_PIECES`` pieces,
 #: the sun at their middles), per case, from ``tools/bench_accuracy.py`` (a test checks it as well).
 MEASURED_PIXEL_ERROR_PER_PIXEL: dict[str, float] = {
     "ground_vista": 0.0011,
@@ -433,23 +437,19 @@ def nearest_cases(summary: SceneSummary) -> tuple[str, ...]:
     return (geometry, "sunset_toward", "sunset_away") if low_sun else (geometry,)
 
 
-def expected_error(level: Level, summary: SceneSummary, per_pixel: bool = False) -> float:
-    """Largest measured pixel error of ``level`` over the situations standing for ``summary`` (``per_pixel``:
-    as the Per Pixel mode evaluates it)."""
-    if per_pixel and level is Level.BALANCED:
-        return max(MEASURED_PIXEL_ERROR_PER_PIXEL[name] for name in nearest_cases(summary))
+def expected_error(level: Level, summary: SceneSummary) -> float:
+    """Largest measured pixel error of ``level`` over the situations standing for ``summary``."""
     return max(MEASURED_PIXEL_ERROR[(level, name)] for name in nearest_cases(summary))
 
 
-def choose_level(summary: SceneSummary, tolerance: float = 0.02, per_pixel: bool = False) -> tuple[Level, float]:
-    """(level, expected relative pixel error): the cheapest implemented level within ``tolerance``.
+def choose_level(summary: SceneSummary, tolerance: float = 0.02) -> tuple[Level, float]:
+    """(level, expected relative pixel error): the cheapest of :data:`PRODUCT_LEVELS` within ``tolerance``.
 
-    If no implemented level meets it, the one with the smallest expected error (rule 3). Only
-    :data:`IMPLEMENTED_LEVELS` are considered; ``per_pixel``: the levels as the Per Pixel mode evaluates them.
+    If none meets it, the one with the smallest expected error (rule 3).
     """
     if not tolerance > 0.0:
         raise ValueError(f"choose_level: tolerance must be a relative error > 0 (e.g. 0.02); got {tolerance!r}")
-    expected = [(level, expected_error(level, summary, per_pixel)) for level in IMPLEMENTED_LEVELS]
+    expected = [(level, expected_error(level, summary)) for level in PRODUCT_LEVELS]
     for level, error in expected:
         if error <= tolerance:
             return level, error

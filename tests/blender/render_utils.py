@@ -214,12 +214,11 @@ def render_exr(scene: bpy.types.Scene, path: Path) -> np.ndarray:
     return pixels
 
 
-def ground_sun(scene: bpy.types.Scene, atmosphere=None) -> tuple[float, np.ndarray, tuple[np.ndarray, np.ndarray]]:
-    """The sun as the add-on writes it for ``scene``: its elevation (rad), E_sun at the ground (the limb-darkened
-    disk of the scene's settings) and the Balanced level's ground optical depths (tau_R, tau_M)."""
+def ground_sun(scene: bpy.types.Scene, atmosphere=None) -> tuple[float, np.ndarray]:
+    """The sun as the add-on writes it for ``scene``: its elevation (rad) and E_sun at the ground (the
+    limb-darkened disk of the scene's settings)."""
     from atmos_addon.blender import scene_reading, settings_io
     from atmos_addon.physics import sun_irradiance_ground
-    from atmos_addon.physics.balanced import sun_optical_depths_ground
 
     settings = scene.atmos
     atmosphere = atmosphere or settings_io.atmosphere_from_settings(settings)
@@ -227,7 +226,7 @@ def ground_sun(scene: bpy.types.Scene, atmosphere=None) -> tuple[float, np.ndarr
     elevation = math.asin(float(np.clip(sun_dir[2], -1.0, 1.0)))
     e_sun = np.asarray(sun_irradiance_ground(elevation, atmosphere, 0.0, 0.5 * settings.sun_angular_diameter,
                                              settings.sun_limb_darkening), dtype=float)
-    return elevation, e_sun, sun_optical_depths_ground(elevation, atmosphere, e_sun)
+    return elevation, e_sun
 
 
 def fast_segment(scene: bpy.types.Scene, direction, distance: float) -> tuple[np.ndarray, np.ndarray]:
@@ -238,7 +237,7 @@ def fast_segment(scene: bpy.types.Scene, direction, distance: float) -> tuple[np
 
     atmosphere = settings_io.atmosphere_from_settings(scene.atmos)
     sun_dir, _ = scene_reading.sun_direction(scene)
-    _, e_sun, _ = ground_sun(scene, atmosphere)
+    _, e_sun = ground_sun(scene, atmosphere)
     metres = distance * scene_reading.metres_per_unit(scene)
     mu = float(np.dot(np.asarray(direction), sun_dir))
     return extinction(metres, atmosphere), inscattering(metres, mu, atmosphere, e_sun)

@@ -20,7 +20,7 @@ from mathutils import Vector
 from atmos_addon import plan
 from atmos_addon.blender.apply import compositor, materials
 from atmos_addon.blender import orchestrator, scene_reading, settings_io
-from render_utils import emission_material, fast_segment, ground_sun, parity_world_camera_sun, render_exr, \
+from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, \
     set_use_nodes, user_compositor, view_direction
 
 IS_5 = bpy.app.version >= (5, 0, 0)
@@ -393,9 +393,6 @@ def test_cutout_does_not_catch_its_own_atmosphere_in_cycles(kind: str, tmp_path:
     np.testing.assert_allclose(pixels[card[1], card[0]], expected_card, rtol=3e-3)
 
 
-# -- the Balanced quality level, end to end ----------------------------------------------------------------
-
-
 @pytest.mark.parametrize("engine, tolerance", [("CYCLES", 2e-3), (EEVEE, 1e-2)])
 def test_per_pixel_mode_composites_the_physics(engine: str, tolerance: float, tmp_path: Path) -> None:
     """Per Pixel mode: the compositor evaluates the Fast level from the distance and view AOVs, and the pixels are
@@ -471,7 +468,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     assert node.node_tree.name == "Atmos Aerial Composite (Per Pixel)"
     assert compositor.installed_evaluation(scene) == "PER_PIXEL"
     drivers = [curve for curve in tree.animation_data.drivers if curve.data_path.startswith('nodes["Atmos Aerial')]
-    assert len(drivers) == 3 * 9 + 3 + 1   # 9 colour/vector parameters, 3 scalars, the camera's z
+    assert len(drivers) == 3 * 7 + 2   # 7 colour/vector parameters, 2 scalars
     assert snapshot(user.node_tree) == material_nodes
     assert {aov.name for aov in scene.view_layers[0].aovs} == {"atmos_coverage", "atmos_distance", "atmos_view"}
     surface = bpy.data.node_groups[materials.SURFACE_GROUP]   # rebuilt in place: only this mode's outputs
@@ -517,7 +514,7 @@ def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_ag
     scene.camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(scene.camera)
     scene.atmos.render_mode = "PER_PIXEL"
-    scene.atmos.quality = "BALANCED"
+    scene.atmos.quality = "FAST"
     orchestrator.enable_effect(scene)
     tree = compositor.current_tree(scene)
     group = bpy.data.node_groups[per_pixel.GROUP_NAME]
@@ -532,52 +529,48 @@ def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_ag
     assert group[stamps.VERSION_KEY] == stamps.PER_PIXEL.version and bpy.data.node_groups[per_pixel.GROUP_NAME] == group
     node = tree.nodes[compositor.COMPOSITE_NODE]
     drivers = [c for c in tree.animation_data.drivers if c.data_path.startswith(f'nodes["{node.name}"]')]
-    assert len(drivers) == 3 * 9 + 3 + 1 and all(c.driver.is_valid for c in drivers)
-    scene.camera.location.z = 123.0
-    scene.frame_set(scene.frame_current)
-    assert node.inputs[per_pixel.CAMERA_SOCKET[0]].default_value == pytest.approx(123.0)
+    assert len(drivers) == 3 * 7 + 2 and all(c.driver.is_valid for c in drivers)   # 7 vectors, 2 numbers
+    linked = {link.to_socket.name for link in tree.links if link.to_node == node}
+    assert linked == {name for name, _, _ in per_pixel.IMAGE_INPUTS}   # the render passes stay wired
 
 
-def test_the_per_pixel_camera_driver_picks_up_a_camera_added_after_enabling() -> None:
-    """Enabled without a camera, the camera-z driver fails and Blender flags it invalid for good (saved so in the
-    file); adding a camera makes the depsgraph handler clear the flag, so the group reads the camera's z."""
-    from atmos_addon.nodes import per_pixel
+def test_a_per_pixel_group_saved_with_balanced_inputs_keeps_its_links_and_drops_their_drivers() -> None:
+    """A Per Pixel group saved while Balanced existed had a camera-z input and three Balanced parameters (retired
+    December 2026): rebuilt, those inputs and their drivers go, the render passes stay linked, every driver is
+    valid and each parameter input reads its own scene property."""
+    from atmos_addon.nodes import per_pixel, stamps
 
     scene = bpy.context.scene
-    scene.camera = None
     mesh_object("Thing", user_material())
+    scene.camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(scene.camera)
     scene.atmos.render_mode = "PER_PIXEL"
-    scene.atmos.quality = "BALANCED"
+    scene.atmos.quality = "FAST"
     orchestrator.enable_effect(scene)
-    scene.frame_set(scene.frame_current)
-    node = compositor.current_tree(scene).nodes[compositor.COMPOSITE_NODE]
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    scene.collection.objects.link(camera)
-    camera.location.z = 50.0
-    scene.camera = camera
-    bpy.context.view_layer.update()   # the depsgraph handler sees the new camera
-    scene.frame_set(scene.frame_current)
-    assert node.inputs[per_pixel.CAMERA_SOCKET[0]].default_value == pytest.approx(50.0)
-
-
-def _expected_balanced(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:
-    """L0 F_ex + L_in of ``physics.balanced`` for the scene's camera (origin altitude + its z), in the variant of
-    the scene's mode (Per Pixel: 8 pieces, the sun at their middles)."""
-    from atmos_addon.physics.balanced import (CURVATURE_PIECES, PER_PIXEL_PIECES, PER_PIXEL_SUN_AT,
-                                              extinction_balanced, inscattering_balanced)
-
-    atmosphere = settings_io.atmosphere_from_settings(scene.atmos)
-    sun_dir, _ = scene_reading.sun_direction(scene)
-    _, e_sun, taus = ground_sun(scene, atmosphere)
-    metres = distance * scene_reading.metres_per_unit(scene)
-    view = np.array(_pixel_direction(column, row))
-    h0 = scene.atmos.origin_altitude + scene.camera.location.z * scene_reading.metres_per_unit(scene)
-    per_pixel = scene.atmos.render_mode == "PER_PIXEL"
-    pieces, sun_at = (PER_PIXEL_PIECES, PER_PIXEL_SUN_AT) if per_pixel else (CURVATURE_PIECES, "lower_end")
-    return (np.asarray(radiance) * extinction_balanced(h0, view, metres, atmosphere, pieces=pieces)
-            + inscattering_balanced(h0, view, metres, float(view @ sun_dir), atmosphere, e_sun,
-                                    sun_optical_depths=taus,
-                                    pieces=pieces, sun_at=sun_at))
+    tree = compositor.current_tree(scene)
+    group = bpy.data.node_groups[per_pixel.GROUP_NAME]
+    node = tree.nodes[compositor.COMPOSITE_NODE]
+    inputs = [i for i in group.interface.items_tree if i.item_type == "SOCKET" and i.in_out == "INPUT"]
+    for position, (name, socket_type) in enumerate((("Origin Altitude (m)", "NodeSocketFloat"),
+                                                    ("Sun Optical Depth, Rayleigh", "NodeSocketVector"),
+                                                    ("Sun Optical Depth, Mie", "NodeSocketVector"),
+                                                    ("Camera z (units)", "NodeSocketFloat"))):
+        item = group.interface.new_socket(name, in_out="INPUT", socket_type=socket_type)
+        group.interface.move(item, inputs[len(per_pixel.IMAGE_INPUTS) + 9].position + position)
+    for socket in node.inputs[len(per_pixel.IMAGE_INPUTS):]:   # the drivers of then, by input index
+        for index in range(3 if socket.type == "VECTOR" else 1):
+            socket.driver_add("default_value", index) if socket.type == "VECTOR" else socket.driver_add("default_value")
+    group[stamps.VERSION_KEY] = 1
+    orchestrator.update(scene)
+    assert [s.name for s in node.inputs if s.name in ("Camera z (units)", "Origin Altitude (m)")] == []
+    drivers = [c for c in tree.animation_data.drivers if c.data_path.startswith(f'nodes["{node.name}"]')]
+    assert len(drivers) == 3 * 7 + 2 and all(c.driver.is_valid for c in drivers)
+    for curve in drivers:
+        socket = tree.path_resolve(curve.data_path.rsplit(".", 1)[0])
+        name = next(prop for prop, socket_name, _ in per_pixel.PARAMETER_SOCKETS if socket_name == socket.name)
+        assert curve.driver.variables[0].targets[0].data_path.startswith(f'["{name}"]'), (socket.name, curve)
+    linked = {link.to_socket.name for link in tree.links if link.to_node == node}
+    assert linked == {name for name, _, _ in per_pixel.IMAGE_INPUTS}
 
 
 def _aircraft_planes(engine: str, quality: str, mode: str):
@@ -608,20 +601,6 @@ def _assert_planes_match(pixels: np.ndarray, expected_of, tolerance: float, what
         got = pixels[row, column]
         print(f"{what} {name}: max relative error {np.max(np.abs(got / expected - 1)):.2e}")
         assert np.allclose(got, expected, rtol=tolerance, atol=0), (what, name, got, expected)
-
-
-@pytest.mark.parametrize("mode", ["COMPOSITOR", "PER_PIXEL"])
-@pytest.mark.parametrize("engine, tolerance", [("CYCLES", 2e-3), (EEVEE, 1e-2)])
-def test_balanced_level_composites_the_physics(engine: str, tolerance: float, mode: str, tmp_path: Path) -> None:
-    """An aircraft 3 km up: the composited pixels are ``physics.balanced``, far from Fast. The shader group takes
-    the camera's altitude from the shading point, the per-pixel group from the driven camera z."""
-    scene = _aircraft_planes(engine, "BALANCED", mode)
-    pixels = _render(scene, tmp_path, f"{engine}_{mode}_balanced")
-    _assert_planes_match(pixels, lambda *plane: _expected_balanced(scene, *plane), tolerance,
-                         f"balanced {engine} {mode}")
-    for name, radiance, distance, column, row in PLANES[1:]:   # the levels differ here
-        fast = _expected(scene, radiance, distance, column, row)
-        assert np.max(np.abs(fast / _expected_balanced(scene, radiance, distance, column, row) - 1)) > 0.05, name
 
 
 def _expected_precise(scene, radiance, distance: float, column: int, row: int) -> np.ndarray:

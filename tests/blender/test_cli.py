@@ -162,13 +162,17 @@ def test_render_in_per_pixel_mode_writes_its_aovs(workdir: Path) -> None:
 
 
 def test_apply_with_a_quality_level(workdir: Path) -> None:
-    out = workdir / "balanced.blend"
-    proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--quality", "balanced",
+    out = workdir / "fast.blend"
+    proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--quality", "fast",
                    "--output", str(out), cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     from atmos_addon.physics.quality import Level, level_summary   # the level's measured error and cost
 
-    assert f"atmos: Balanced: {level_summary(Level.BALANCED, True, 'COMPOSITOR')}" in proc.stderr
+    assert f"atmos: Fast: {level_summary(Level.FAST, True, 'COMPOSITOR')}" in proc.stderr
+    proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--quality", "balanced",
+                   "--output", str(workdir / "balanced.blend"), cwd=workdir)
+    assert proc.returncode == 2 and "the Balanced quality level was retired" in proc.stderr, proc.stderr[-3000:]
+    assert "use precise" in proc.stderr and not (workdir / "balanced.blend").exists()
     proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--quality", "auto",
                    "--output", str(workdir / "auto.blend"), cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]

@@ -9,7 +9,9 @@ Atmos sky. ``data/atmos_7df8acd.blend`` (the release before the Precise sky view
 adds a third scene at the Precise level with multiple scattering. Opened with today's add-on, every Atmos node group
 must carry today's stamp (:mod:`atmos_addon.nodes.stamps`), rebuilt in place (no second copy, the compositor's and
 materials' links kept), none may read as edited, and every scene must render as it did (Cycles, pixel centres:
-emission and sky only, no sampling noise).
+emission and sky only, no sampling noise). The Per Pixel scenes were saved at the Balanced level, retired in
+December 2026: they open at Fast, which shares Balanced's sky, and their compositor group node loses the drivers of
+the inputs only Balanced read.
 """
 
 from __future__ import annotations
@@ -63,8 +65,28 @@ def test_a_file_of_an_earlier_release_upgrades_in_place_and_renders_the_same(rel
         difference = float(np.max(np.abs(image - expected)))
         print(f"\n{release} {scene_name}: max abs difference to the release's render {difference:.2e}")
         assert difference <= 1e-4, scene_name
+    _assert_balanced_upgraded_to_fast(bpy.data.scenes["Per Pixel"])
     if "Precise" in RELEASES[release]:
         _assert_the_precise_sky_view_came_in(bpy.data.scenes["Precise"])
+
+
+def _assert_balanced_upgraded_to_fast(scene) -> None:
+    """A scene saved at the retired Balanced level (Per Pixel mode): Fast, no Balanced parameter left, and the
+    compositor group node driven on exactly today's inputs, every driver valid (the camera-z and sun-depth drivers
+    of before would point at other sockets)."""
+    from atmos_addon.blender.apply import compositor
+    from atmos_addon.nodes import parameters, per_pixel
+
+    assert scene.atmos.quality == "FAST" and scene.atmos.render_mode == "PER_PIXEL"
+    assert not any(name in scene for name in parameters.RETIRED_PARAMETER_NAMES)
+    tree = compositor.current_tree(scene)
+    node = tree.nodes[compositor.COMPOSITE_NODE]
+    assert node.node_tree[stamps.FEATURES_KEY] == "rayleigh+mie+abs"
+    linked = {link.to_socket.name for link in tree.links if link.to_node == node}
+    assert linked == {name for name, _, _ in per_pixel.IMAGE_INPUTS}   # the interface shrank, the links stayed
+    drivers = [c for c in tree.animation_data.drivers if c.data_path.startswith(f'nodes["{node.name}"].inputs[')]
+    assert len(drivers) == sum(size for _, _, size in per_pixel.PARAMETER_SOCKETS)
+    assert all(c.driver.is_valid for c in drivers)
 
 
 def _assert_the_precise_sky_view_came_in(scene) -> None:
@@ -138,3 +160,45 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     assert (bpy.context.scene.atmos.quality, bpy.context.scene.atmos.multiple_scattering) == ("PRECISE", True)
     assert bpy.context.scene.atmos.ozone_column_du == pytest.approx(300.0)
     np.testing.assert_allclose(bpy.context.scene.atmos.wavelengths_nm, [648.1, 547.4, 443.1], rtol=1e-6)
+
+
+def test_a_scene_saved_at_the_retired_balanced_level_opens_at_fast(addon, tmp_path, capsys):
+    """Balanced was retired in December 2026 (off the Pareto front against the complete reference): a file that
+    stores it (the Quality enum's number 1) opens at Fast with a note on the console, its Balanced parameters and
+    their keys removed; a scene with the effect off is upgraded too; the API and the CLI refuse the name and say
+    what replaced it."""
+    from atmos_addon import api
+    from atmos_addon.nodes import parameters
+
+    scene = addon
+    ru.make_camera(scene, rotation_euler=(1.5, 0.0, 0.0))
+    api.enable(scene)
+    off = bpy.data.scenes.new("Off")
+    for target in (scene, off):
+        target.atmos["quality"] = 1                  # what a file saved at Balanced holds
+    for name in parameters.RETIRED_PARAMETER_NAMES:  # and the parameters Balanced read, keyed
+        scene[name] = 0.5
+        scene.keyframe_insert(f'["{name}"]', frame=1)
+    saved, name = tmp_path / "balanced.blend", scene.name
+    bpy.ops.wm.save_as_mainfile(filepath=str(saved))
+    capsys.readouterr()
+    bpy.ops.wm.open_mainfile(filepath=str(saved))
+    scene, off = bpy.data.scenes[name], bpy.data.scenes["Off"]
+    assert (scene.atmos.quality, off.atmos.quality) == ("FAST", "FAST")
+    assert facts_level(scene) == "fast"
+    assert not any(name in scene for name in parameters.RETIRED_PARAMETER_NAMES)
+    paths = {c.data_path for c in parameters.fcurves_of(scene.animation_data.action)}
+    assert not any(name in path for path in paths for name in parameters.RETIRED_PARAMETER_NAMES), paths
+    out = capsys.readouterr().out
+    assert f"Atmos: scene '{scene.name}': the Balanced quality level was retired" in out and "opens at Fast" in out
+    with pytest.raises(api.AtmosError, match="Balanced quality level was retired.*'PRECISE'"):
+        api.enable(scene, quality="BALANCED")
+    with pytest.raises(api.AtmosError, match="must be one of 'FAST', 'PRECISE', 'AUTO'"):
+        api.enable(scene, quality="EXACT")
+    assert scene.atmos.quality == "FAST"
+
+
+def facts_level(scene) -> str:
+    from atmos_addon.blender import facts
+
+    return facts.plan_of(scene).level

@@ -26,7 +26,6 @@ from atmos_addon.nodes import (AERIAL_PARAMETER_NAMES, GROUP_NAME, OUTPUT_INSCAT
                          ensure_aerial_perspective_group, node_count, read_shader_parameters, write_shader_parameters)
 from atmos_addon.nodes import stamps
 from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
-from atmos_addon.nodes.parameters import BALANCED_PARAMETER_NAMES
 
 WIDTH, HEIGHT = 12, 8
 FOV = math.radians(60.0)
@@ -280,22 +279,16 @@ def test_features_build_only_the_terms_needed():
             hg_nodes[features.key] = sum(1 for n in tree.nodes if n.label == "Phi_HG")
             attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
             assert describe_features(features).endswith(f": {counts[features.key]} nodes")
-    assert counts == {key: count for key, count in NODE_COUNTS.items()
-                      if "+balanced" not in key and "+precise" not in key}
+    assert counts == {key: count for key, count in NODE_COUNTS.items() if "+precise" not in key}
     assert hg_nodes == {"rayleigh": 0, "rayleigh+abs": 0, "rayleigh+mie": 1, "rayleigh+mie+abs": 1}
     assert counts["rayleigh"] < counts["rayleigh+abs"] < counts["rayleigh+mie"] < counts["rayleigh+mie+abs"]
     assert "atmos_beta_mie" not in attributes["rayleigh+abs"] and "atmos_mie_g" not in attributes["rayleigh"]
     assert "atmos_beta_mie_absorption" not in attributes["rayleigh+mie"]
-    assert attributes["rayleigh+mie+abs"] == set(AERIAL_PARAMETER_NAMES) - set(BALANCED_PARAMETER_NAMES)
+    assert attributes["rayleigh+mie+abs"] == set(AERIAL_PARAMETER_NAMES)   # the Fast graph reads every one
     full = NODE_COUNTS["rayleigh+mie+abs"]
     assert describe_features(AerialFeatures(True, True)) == f"Fast, Rayleigh + Mie + absorption: {full} nodes"
-    for mie in (False, True):
-        for absorption in (False, True):
-            features = AerialFeatures(mie=mie, absorption=absorption, level="balanced")
-            tree = ensure_aerial_perspective_group(features)
-            counts[features.key] = node_count(tree)
-            attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
-            assert describe_features(features).startswith("Balanced, ")
+    with pytest.raises(ValueError, match="level"):   # retired in December 2026
+        AerialFeatures(level="balanced")
     for mie in (False, True):
         for absorption in (False, True):
             for blend in (False, True):
@@ -312,9 +305,6 @@ def test_features_build_only_the_terms_needed():
     assert attributes["rayleigh+mie+abs+precise"] == {
         "atmos_precise_tile", "atmos_precise_scale", "atmos_precise_atlas", "atmos_planet_radius",
         "atmos_sun_direction", "atmos_metres_per_unit", "atmos_mie_g"}
-    assert attributes["rayleigh+mie+abs+balanced"] == set(AERIAL_PARAMETER_NAMES)
-    assert "atmos_beta_mie" not in attributes["rayleigh+abs+balanced"]
-    assert "atmos_mie_g" not in attributes["rayleigh+balanced"]
 
 
 def test_parameters_round_trip_validate_and_clear():
@@ -380,46 +370,16 @@ def test_render_utils_reads_linear_values():
     assert time.time() - start < 30.0
 
 
-# -- the Balanced level -----------------------------------------------------------------------------------
-
-#: (camera location in units, rotation, metres per unit, origin altitude m, sun): a drone 2 km up looking 25 deg
-#: down (its 20 km plane lies below the ground: the profile is clamped there), and a camera on a 500 m plateau
-#: with 10 m units looking 5 deg up at planes 3 to 200 km away.
-BALANCED_CASES = (
-    ((0.0, 0.0, 2000.0), (math.radians(65.0), 0.0, math.radians(20.0)), 1.0, 0.0, (0.3, 0.5, 0.6)),
-    ((0.0, 0.0, 10.0), (math.radians(95.0), 0.0, math.radians(-30.0)), 10.0, 500.0, (-0.2, 0.9, 0.15)),
-)
-
-
-def _write_balanced(scene, atm: Atmosphere, sun_direction, metres_per_unit: float, origin_altitude: float):
-    """Parameters as the add-on writes them; E_sun is the ground sun of the atmosphere (the graph relies on
-    E_sun exp(tau_sun) <= E_top, which an arbitrary E_sun need not satisfy). Returns (taus, E_sun)."""
+def _write_parameters(scene, atm: Atmosphere, sun_direction, metres_per_unit: float) -> None:
+    """Parameters as the add-on writes them, E_sun the ground sun of the atmosphere."""
     from atmos_addon.physics import sun_irradiance_ground
-    from atmos_addon.physics.balanced import sun_optical_depths_ground
 
     sun = _unit(sun_direction)
-    e_sun = sun_irradiance_ground(math.asin(sun[2]), atm)
-    tau_r, tau_m = sun_optical_depths_ground(math.asin(sun[2]), atm, e_sun)
     write_shader_parameters(scene, beta_rayleigh=atm.rayleigh_scattering, beta_mie=atm.mie_scattering,
                             beta_mie_absorption=atm.mie_absorption, mie_g=atm.mie_g, sun_direction=sun,
-                            sun_irradiance=e_sun, metres_per_unit=metres_per_unit,
-                            planet_radius=atm.planet_radius, rayleigh_scale_height=atm.rayleigh_scale_height,
-                            mie_scale_height=atm.mie_scale_height, origin_altitude=origin_altitude,
-                            sun_optical_depth_rayleigh=tau_r, sun_optical_depth_mie=tau_m)
-    return (tau_r, tau_m), e_sun
-
-
-def _expected_balanced(camera, metres_per_unit: float, origin_altitude: float, sun_direction, taus, e_sun,
-                       atm: Atmosphere = ATMOSPHERE) -> np.ndarray:
-    """``physics.balanced`` in float32 for every pixel-centre ray of the parity scene, (HEIGHT, WIDTH, 3)."""
-    from atmos_addon.physics.balanced import extinction_balanced, inscattering_balanced
-
-    directions, distance_m, depth = _parity_rays(camera, metres_per_unit)
-    h0 = origin_altitude + camera.matrix_world.translation.z * metres_per_unit
-    mu = directions @ _unit(sun_direction)
-    transmittance = extinction_balanced(h0, directions, distance_m, atm, np.float32)
-    light = inscattering_balanced(h0, directions, distance_m, mu, atm, e_sun, np.float32, sun_optical_depths=taus)
-    return _parity_image(transmittance, light, depth)
+                            sun_irradiance=sun_irradiance_ground(math.asin(sun[2]), atm),
+                            metres_per_unit=metres_per_unit, planet_radius=atm.planet_radius,
+                            rayleigh_scale_height=atm.rayleigh_scale_height, mie_scale_height=atm.mie_scale_height)
 
 
 def _parity_rays(camera, metres_per_unit: float):
@@ -437,51 +397,6 @@ def _parity_image(transmittance, light, depth) -> np.ndarray:
     return np.where(top, transmittance, light * gain)
 
 
-@pytest.mark.parametrize("engine", ru.ENGINES)
-def test_balanced_group_matches_physics_core(engine):
-    """The Balanced graph is ``physics.balanced`` (curved ray, exponential profiles, sun at altitude)."""
-    worst = 0.0
-    for location, rotation, metres_per_unit, origin, sun in BALANCED_CASES:
-        scene, camera = _parity_scene(AerialFeatures(level="balanced"), location, rotation)
-        ru.set_engine(scene, engine, width=WIDTH, height=HEIGHT)
-        taus, e_sun = _write_balanced(scene, ATMOSPHERE, sun, metres_per_unit, origin)
-        image = ru.render_to_array(scene)[..., :3]
-        expected = _expected_balanced(camera, metres_per_unit, origin, sun, taus, e_sun)
-        fast = _expected(camera, metres_per_unit, sun) * np.where(  # Fast with the same E_sun
-            np.arange(HEIGHT)[:, np.newaxis, np.newaxis] < HEIGHT // 2, 1.0, e_sun / np.array(SUN_IRRADIANCE))
-        worst = max(worst, _relative_error(image, expected, engine, f"camera {location}"))
-        _relative_error(image, _builder_image(scene, camera, AerialFeatures(level="balanced"), metres_per_unit),
-                        engine, f"camera {location}, against its builder")
-        # The case is one where the levels differ: the test would fail on the Fast graph.
-        assert (np.abs(fast - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)).max() > 0.1
-    print(f"\n{engine} Balanced (Blender {bpy.app.version_string}): worst relative error {worst:.2e}")
-
-
-@pytest.mark.parametrize("engine", ru.ENGINES)
-def test_balanced_group_at_the_extremes_is_finite_and_matches_the_core(engine):
-    """Sun at -5, 0 and 0.5 deg, a camera at 50 km and above the atmosphere, distances to 6e5 m: the rendered
-    group is finite, non-negative, its transmittance in [0, 1], and equal to the float32 core (tolerance as
-    above). At 1e6 m per unit (planes 3e8 to 2e10 m away) it stays finite and in bounds only: the graph is
-    exact to about 1e6 m (0.4 % at 2e6 m, 12 % at 6e6 m, measured), see docs/quality.md."""
-    scene, camera = _parity_scene(AerialFeatures(level="balanced"))
-    ru.set_engine(scene, engine, width=WIDTH, height=HEIGHT)
-    cases = (  # (sun elevation deg, metres per unit, origin altitude m)
-        (-5.0, 1.0, 0.0), (0.0, 10.0, 0.0), (0.5, 10.0, 0.0), (30.0, 1.0, 50_000.0), (30.0, 10.0, 150_000.0),
-        (20.0, 30.0, 0.0), (20.0, 1.0e6, 0.0))
-    for elevation, metres_per_unit, origin in cases:
-        e = math.radians(elevation)
-        sun = (0.0, math.cos(e), math.sin(e))
-        taus, e_sun = _write_balanced(scene, ATMOSPHERE, sun, metres_per_unit, origin)
-        image = ru.render_to_array(scene)[..., :3]
-        label = f"{engine} sun {elevation} deg, {metres_per_unit:g} m/unit, origin {origin:g} m"
-        assert np.all(np.isfinite(image)) and np.all(image >= 0.0), label
-        assert np.all(image[: HEIGHT // 2] <= 1.0 + 1e-6), label
-        expected = _expected_balanced(camera, metres_per_unit, origin, sun, taus, e_sun)
-        relative = np.abs(image - expected) / np.maximum(np.abs(expected), RELATIVE_FLOOR)
-        if metres_per_unit < 1.0e6:
-            assert relative.max() < TOLERANCE[engine], f"{label}: worst relative error {relative.max():.2e}"
-
-
 # -- Precise ---------------------------------------------------------------------------------------------
 
 #: (camera location, rotation, metres per unit, origin altitude m, sun direction): a drone 2 km up looking down
@@ -497,7 +412,7 @@ def _write_precise(scene, atm: Atmosphere, sun_direction, metres_per_unit: float
     from atmos_addon.blender.apply import precise_tables
     from atmos_addon.physics.precise import bake_tile
 
-    _write_balanced(scene, atm, sun_direction, metres_per_unit, origin_altitude)
+    _write_parameters(scene, atm, sun_direction, metres_per_unit)
     sun = _unit(sun_direction)
     altitude = origin_altitude + camera.matrix_world.translation.z * metres_per_unit
     tile = bake_tile(atm, altitude, math.asin(sun[2]))

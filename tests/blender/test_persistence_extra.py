@@ -124,10 +124,11 @@ def test_edits_to_links_and_settings_in_sky_and_surface_groups_are_noticed() -> 
 
 def test_the_per_pixel_compositor_group_is_watched_and_reset_keeps_the_mode() -> None:
     """Per Pixel mode: an edit inside its compositor group is reported; Reset rebuilds it at the scene's level
-    (Balanced), and the surface group with the Per Pixel outputs it was built for, not the Compositor mode's."""
+    (Fast, not the default Precise), and the surface group with the Per Pixel outputs it was built for, not the
+    Compositor mode's."""
     scene = bpy.context.scene
     scene.atmos.render_mode = "PER_PIXEL"
-    scene.atmos.quality = "BALANCED"
+    scene.atmos.quality = "FAST"
     _enabled_scene()
     per_pixel = bpy.data.node_groups[group_integrity.PER_PIXEL]
     surface = bpy.data.node_groups[group_integrity.SURFACE]
@@ -142,7 +143,7 @@ def test_the_per_pixel_compositor_group_is_watched_and_reset_keeps_the_mode() ->
     assert bpy.ops.atmos.reset_groups() == {"FINISHED"}
     assert group_integrity.edited_groups(force=True) == []
     assert bpy.data.node_groups[group_integrity.PER_PIXEL] == per_pixel and len(per_pixel.nodes) == n_nodes
-    assert per_pixel["atmos_features"].endswith("+balanced")
+    assert per_pixel["atmos_features"] == "rayleigh+mie+abs"
     assert sorted(n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV") == aovs_before
 
 

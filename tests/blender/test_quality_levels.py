@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Quality levels in the add-on: the setting, Auto's choice, what the group contains, the parameters written.
 
-The Balanced graph's numbers are tested against the physics core in test_node_groups (the group alone) and
+The graphs' numbers are tested against the physics core in test_node_groups (the group alone) and
 test_aerial_application (composited, end to end); here: which graph a scene gets and why.
 """
 
@@ -13,12 +13,11 @@ import bpy
 import numpy as np
 import pytest
 
-import atmos_addon
 from atmos_addon.blender.apply import in_render
 from atmos_addon.blender import orchestrator, quality_choice
-from atmos_addon.physics import sun_irradiance_ground
-from atmos_addon.physics.balanced import sun_optical_depths_ground
 from atmos_addon.physics.quality import SceneSummary
+from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
+from atmos_addon.nodes.parameters import PRECISE_TILE, RETIRED_PARAMETER_NAMES
 from render_utils import emission_material
 
 GROUP = "Atmos Aerial Perspective"
@@ -53,25 +52,19 @@ def test_quality_switch_edits_the_same_group_and_materials_keep_it():
     assert tree["atmos_features"] == "rayleigh+mie+abs+precise" and scene.atmos.status_quality.startswith("Precise")
     groups_before = len(bpy.data.node_groups)
     pointer = tree.as_pointer()
-    scene.atmos.quality = "BALANCED"
+    scene.atmos.quality = "FAST"
     tree = bpy.data.node_groups[GROUP]
-    assert tree.as_pointer() == pointer and tree["atmos_features"] == "rayleigh+mie+abs+balanced"
-    assert len(tree.nodes) == balanced_nodes_count() and len(bpy.data.node_groups) == groups_before
-    assert scene.atmos.status_built.startswith("Balanced, ") and scene.atmos.status_quality.startswith("Balanced")
+    assert tree.as_pointer() == pointer and tree["atmos_features"] == "rayleigh+mie+abs"
+    assert len(tree.nodes) == NODE_COUNTS["rayleigh+mie+abs"] and len(bpy.data.node_groups) == groups_before
+    assert scene.atmos.status_built.startswith("Fast, ") and scene.atmos.status_quality.startswith("Fast")
     material = bpy.data.materials["Ground"]
     users = [n for n in material.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"]
     assert any(_uses(n.node_tree, tree) for n in users)
-    scene.atmos.quality = "FAST"
-    assert bpy.data.node_groups[GROUP]["atmos_features"] == "rayleigh+mie+abs"
+    scene.atmos.quality = "PRECISE"
+    assert bpy.data.node_groups[GROUP]["atmos_features"] == "rayleigh+mie+abs+precise"
+    assert not any(name in scene for name in RETIRED_PARAMETER_NAMES)   # the retired Balanced level's: never written
     orchestrator.disable_effect(scene)
-    for name in ("atmos_origin_altitude", "atmos_sun_optical_depth_rayleigh", "atmos_sun_optical_depth_mie"):
-        assert name not in scene
-
-
-def balanced_nodes_count() -> int:
-    from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
-
-    return NODE_COUNTS["rayleigh+mie+abs+balanced"]
+    assert not any(name.startswith("atmos_") for name in scene.keys())
 
 
 def _uses(tree, target) -> bool:
@@ -83,35 +76,28 @@ def _uses(tree, target) -> bool:
     return any(_uses(n.node_tree, target) for n in tree.nodes if n.bl_idname == "ShaderNodeGroup")
 
 
-def test_balanced_parameters_follow_the_sun_and_the_origin_altitude():
+def test_the_origin_altitude_raises_the_precise_tables_camera():
+    """Precise bakes its table at the camera's altitude: the origin's altitude plus the camera's z."""
     scene = _scene()
-    scene.atmos.quality = "BALANCED"
+    scene.atmos.quality = "PRECISE"
     orchestrator.enable_effect(scene)
+    assert scene[PRECISE_TILE][2] == pytest.approx(2.0)
     scene.atmos.origin_altitude = 1500.0
-    assert scene["atmos_origin_altitude"] == pytest.approx(1500.0)
-    sun = bpy.data.objects["Sun"]
-    for tilt in (40.0, 88.0, 95.0):  # sun 50 deg, 2 deg and -5 deg above the horizon
-        sun.rotation_euler = (math.radians(tilt), 0.0, 0.0)
-        bpy.context.view_layer.update()
-        elevation = math.radians(90.0 - tilt)
-        e_ground = sun_irradiance_ground(elevation, atmos_addon.blender.scene_reading.atmosphere_of(scene), 0.0,
-                                         0.5 * scene.atmos.sun_angular_diameter, scene.atmos.sun_limb_darkening)
-        tau_r, tau_m = sun_optical_depths_ground(elevation, atmos_addon.blender.scene_reading.atmosphere_of(scene),
-                                                 e_ground)
-        np.testing.assert_allclose(scene["atmos_sun_optical_depth_rayleigh"], np.minimum(tau_r, 50.0), rtol=1e-6)
-        np.testing.assert_allclose(scene["atmos_sun_optical_depth_mie"], np.minimum(tau_m, 50.0), rtol=1e-6)
-        assert np.all(np.isfinite(scene["atmos_sun_optical_depth_mie"]))
+    bpy.context.view_layer.update()
+    assert scene[PRECISE_TILE][2] == pytest.approx(1502.0)
 
 
-def test_auto_picks_balanced_for_a_drone_and_fast_when_the_tolerance_allows():
+def test_auto_picks_precise_for_a_drone_and_fast_when_the_tolerance_allows():
+    """Auto chooses between the levels the add-on builds (Fast, Precise): a drone at the default 2 % needs
+    Precise (Fast's measured drone error is 4.7 %), a ground view at 20 % takes Fast (12.5 %)."""
     scene = _scene(camera_z=2000.0)
     scene.atmos.quality = "AUTO"
     orchestrator.enable_effect(scene)
-    assert scene.atmos.auto_level == "balanced"
-    assert bpy.data.node_groups[GROUP]["atmos_features"].endswith("+balanced")
-    assert "Auto chose Balanced" in scene.atmos.status_quality and "drone" in scene.atmos.status_quality
+    assert scene.atmos.auto_level == "precise"
+    assert bpy.data.node_groups[GROUP]["atmos_features"].endswith("+precise")
+    assert "Auto chose Precise" in scene.atmos.status_quality and "drone" in scene.atmos.status_quality
     scene.camera.location.z = 2.0
-    scene.atmos.auto_tolerance = 20.0  # Fast's measured ground-vista error, 12.9 %, is within 20 %
+    scene.atmos.auto_tolerance = 20.0
     assert scene.atmos.auto_level == "fast"
     assert bpy.data.node_groups[GROUP]["atmos_features"] == "rayleigh+mie+abs"
     assert "Auto chose Fast" in scene.atmos.status_quality
@@ -143,12 +129,12 @@ def test_in_render_mode_builds_fast_segments_and_says_so():
     scene = _scene()
     scene.render.engine = "CYCLES"
     scene.atmos.render_mode = "IN_RENDER"
-    scene.atmos.quality = "BALANCED"
+    scene.atmos.quality = "PRECISE"
     orchestrator.enable_effect(scene)
     assert in_render.is_installed(scene)
     assert "In-Render mode applies Fast" in scene.atmos.status_quality
     stamped = [t.get("atmos_features", "") for t in bpy.data.node_groups]
-    assert not any(key.endswith("+balanced") for key in stamped)
+    assert not any("+precise" in key for key in stamped)
 
 
 def test_an_animated_sun_bakes_key_tiles_that_each_frame_blends_and_a_pan_bakes_one():
@@ -241,7 +227,7 @@ def test_precise_bakes_follows_the_sun_and_camera_and_cleans_up():
     assert scene[PRECISE_TILE][2] == pytest.approx(900.0)
     assert not np.array_equal(pixels(), after_sun)
 
-    scene.atmos.quality = "BALANCED"
+    scene.atmos.quality = "FAST"
     assert precise_nodes.IMAGE_NAME not in bpy.data.images
     assert not any(name in scene for name in PRECISE_PARAMETER_NAMES)
     scene.atmos.quality = "PRECISE"

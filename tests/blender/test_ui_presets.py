@@ -280,7 +280,7 @@ def test_labels_fit_the_default_width_and_channels_are_labelled(user_presets):
     add_sun(scene)
     blf.size(0, 11)
     seen = set()
-    for quality in ("FAST", "BALANCED", "PRECISE", "AUTO"):
+    for quality in ("FAST", "PRECISE", "AUTO"):
         scene.atmos.quality = quality
         labels = _drawn_labels(draw_everything(scene), scene.atmos)
         for label in labels:

@@ -140,7 +140,7 @@ def test_undo_and_redo_walk_back_and_forth_through_every_kind_of_change() -> Non
     step("sun moved again", move_sun(75.0, 10.0))
     step("mode Per Pixel", settings(render_mode="PER_PIXEL"))
     step("preset overcast", lambda: bpy.ops.atmos.preset_apply("EXEC_DEFAULT", False, name="overcast"))
-    step("quality Balanced", settings(quality="BALANCED"))
+    step("quality Auto", settings(quality="AUTO"))
     step("mode In-Render", settings(render_mode="IN_RENDER"))
     step("new object, refresh", new_object)
     step("slider", settings(mie_g=(0.5, 0.5, 0.5), distance_scale=2.0))

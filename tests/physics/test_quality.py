@@ -6,6 +6,7 @@ import pytest
 
 from atmos_addon.physics.precise import evaluate as evaluate_precise
 from atmos_addon.physics.quality import (BENCH_CASES, COMPLETE_ONLY_CASES, IMPLEMENTED_LEVELS, MEASURED_PIXEL_ERROR,
+                                         PRODUCT_LEVELS,
                                          MEASURED_PIXEL_ERROR_PER_PIXEL, Level, SceneSummary, bench_case,
                                          choose_level, complete_reference, errors, errors_of, evaluate,
                                          precise_tile, reference, relative_error)
@@ -14,6 +15,7 @@ from atmos_addon.physics.quality import (BENCH_CASES, COMPLETE_ONLY_CASES, IMPLE
 def test_catalogue():
     assert [lv.value for lv in Level] == ["fast", "balanced", "precise"]
     assert IMPLEMENTED_LEVELS == (Level.FAST, Level.BALANCED, Level.PRECISE)
+    assert PRODUCT_LEVELS == (Level.FAST, Level.PRECISE)   # Balanced is measured, no longer built (retired)
     with pytest.raises(ValueError, match="unknown quality level"):
         evaluate("exact", BENCH_CASES[0])
     assert {name for _, name in MEASURED_PIXEL_ERROR} == {case.name for case in BENCH_CASES}
@@ -97,25 +99,28 @@ def test_measured_table_is_current():
 
 
 def test_auto_choice():
+    """Auto picks among the levels the add-on builds, Fast and Precise (never the retired Balanced, though the
+    bench still measures it)."""
     ground = SceneSummary(camera_altitude_range_m=(1.7, 1.7), max_view_distance_m=8000.0, sun_elevation_deg=40.0)
     assert choose_level(ground, tolerance=0.2)[0] is Level.FAST
-    assert choose_level(ground)[0] is Level.BALANCED                  # Fast's bench max is 12.9 %
+    assert choose_level(ground) == (Level.PRECISE, MEASURED_PIXEL_ERROR[(Level.PRECISE, "ground_vista")])
     drone = SceneSummary(camera_altitude_range_m=(1500.0, 2500.0), max_view_distance_m=5000.0)
     assert choose_level(drone, tolerance=0.05) == (Level.FAST, MEASURED_PIXEL_ERROR[(Level.FAST, "drone")])
-    assert choose_level(drone)[0] is Level.BALANCED
+    assert choose_level(drone)[0] is Level.PRECISE
     aircraft = SceneSummary(camera_altitude_range_m=(10_000.0, 10_000.0), max_view_distance_m=3.6e5)
     assert choose_level(aircraft) == (Level.PRECISE, MEASURED_PIXEL_ERROR[(Level.PRECISE, "aircraft")])
-    assert choose_level(aircraft, tolerance=0.1)[0] is Level.BALANCED
+    assert choose_level(aircraft, tolerance=0.1)[0] is Level.PRECISE   # Balanced's 7 % would have met it
     sunset = SceneSummary(sun_elevation_deg=1.0)
-    assert choose_level(sunset)[0] is Level.PRECISE                    # Fast and Balanced miss sunsets by 24-37 %
+    assert choose_level(sunset)[0] is Level.PRECISE                    # Fast misses sunsets by 32-42 %
     assert choose_level(sunset, tolerance=0.001) == (Level.PRECISE, MEASURED_PIXEL_ERROR[(Level.PRECISE,
                                                                                           "sunset_away")])
     animated = SceneSummary(sun_animated=True)
     assert choose_level(animated) == choose_level(sunset)             # an animated sun may set
     mars = SceneSummary(planet_radius_m=3_389_500.0, sun_elevation_deg=70.0)
-    assert choose_level(mars) == (Level.BALANCED, MEASURED_PIXEL_ERROR[(Level.BALANCED, "mars_noon")])
-    # Per Pixel mode evaluates Balanced's more accurate variant: the aircraft needs Precise no longer
-    assert choose_level(aircraft, per_pixel=True) == (Level.BALANCED, MEASURED_PIXEL_ERROR_PER_PIXEL["aircraft"])
-    assert choose_level(sunset, per_pixel=True)[0] is Level.PRECISE
+    assert choose_level(mars) == (Level.PRECISE, MEASURED_PIXEL_ERROR[(Level.PRECISE, "mars_noon")])
+    assert choose_level(mars, tolerance=0.11)[0] is Level.FAST
+    assert all(choose_level(summary, tolerance)[0] in PRODUCT_LEVELS for summary in (ground, drone, aircraft, sunset,
+                                                                                   mars)
+               for tolerance in (0.001, 0.01, 0.02, 0.05, 0.1, 0.5, 2.0))
     with pytest.raises(ValueError, match="tolerance"):
         choose_level(ground, tolerance=0.0)

@@ -183,13 +183,14 @@ def ensure_per_pixel_group(features):
 
 
 def _drive_parameters(node, scene) -> None:
-    """Drive the per-pixel group node's parameter inputs from ``scene``'s Atmos custom properties, and its camera
-    input from the world z of the scene's active camera; at the Precise level also the table's inputs (else their
-    drivers are removed).
+    """Drive the per-pixel group node's parameter inputs from ``scene``'s Atmos custom properties; at the Precise
+    level also the table's inputs (else their drivers are removed).
 
     Single-property drivers (type Average of one variable): Blender evaluates them without Python, so a farm
-    machine without the add-on, or a file opened with scripts disabled, renders the keyed parameters and the
-    animated camera. Existing drivers are reset in place (a rebuilt group keeps its sockets' drivers).
+    machine without the add-on, or a file opened with scripts disabled, renders the keyed parameters. Existing
+    drivers are reset in place (a rebuilt group keeps its sockets' drivers); drivers on inputs the group no
+    longer has at those indices (a file saved with the Balanced level's camera and sun-depth inputs, retired in
+    December 2026) are removed.
     """
     per_pixel = nodes.per_pixel
     key = str(node.node_tree.get(per_pixel.FEATURES_KEY, ""))
@@ -198,8 +199,13 @@ def _drive_parameters(node, scene) -> None:
     targets = [(node.inputs[socket_name], index if size > 1 else None,
                 f'["{name}"][{index}]' if size > 1 else f'["{name}"]')
                for name, socket_name, size in sockets for index in range(size)]
-    camera_socket, camera_path = per_pixel.CAMERA_SOCKET
-    targets.append((node.inputs[camera_socket], None, camera_path))
+    driven = {(socket.path_from_id("default_value"), index if index is not None else 0)
+              for socket, index, _ in targets}
+    animation = node.id_data.animation_data
+    prefix = f'nodes["{node.name}"].inputs['
+    for curve in list(animation.drivers) if animation is not None else ():
+        if curve.data_path.startswith(prefix) and (curve.data_path, curve.array_index) not in driven:
+            animation.drivers.remove(curve)
     for socket, index, data_path in targets:
         curve = socket.driver_add("default_value", index) if index is not None else socket.driver_add("default_value")
         for modifier in list(curve.modifiers):
@@ -216,10 +222,6 @@ def _drive_parameters(node, scene) -> None:
         variable.targets[0].id = scene
         variable.targets[0].data_path = data_path
         driver.is_valid = True   # an earlier failure (a property written later) would skip it for good
-    if not precise:
-        for _, socket_name, _ in per_pixel.PRECISE_SOCKETS:
-            for index in range(3):
-                node.inputs[socket_name].driver_remove("default_value", index)
     node.id_data.update_tag()
 
 

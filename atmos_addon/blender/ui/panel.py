@@ -325,9 +325,8 @@ class ATMOS_PT_atmosphere_quality(_SubPanel, bpy.types.Panel):
         layout.prop(settings, "quality")
         if settings.quality == "AUTO":
             layout.prop(settings, "auto_tolerance")
-        if settings.quality != "FAST":
-            layout.prop(settings, "origin_altitude", text="Altitude, m")
         if settings.quality == "PRECISE" or (settings.quality == "AUTO" and settings.auto_level == "precise"):
+            layout.prop(settings, "origin_altitude", text="Altitude, m")
             layout.prop(settings, "multiple_scattering")
         if settings.enabled and settings.status_quality:
             for line in settings.status_quality.split(". "):   # the level's line, then In-Render's note
