@@ -201,6 +201,31 @@ class SunTransmittanceTable:
         return np.where(lit[..., None], np.exp(-tau), 0.0)
 
 
+def _log_linear(low: np.ndarray, high: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+    """low^(1 - f) high^f: the straight line between two values in log space (light that falls exponentially), or
+    the straight line itself where either is not positive."""
+    positive = (low > 0.0) & (high > 0.0)
+    ratio = np.where(positive, high, 1.0) / np.where(positive, low, 1.0)
+    return np.where(positive, low * ratio ** fraction, low + fraction * (high - low))
+
+
+def _linear_then_log_linear(table: np.ndarray, i: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Interpolation of a table (rows, columns, channels) at fractional indices (i, k), edge samples clamped: linear
+    along the rows in each of the two columns around k, then :func:`_log_linear` between the columns."""
+    columns = table.shape[1]
+    i = np.clip(i, 0, table.shape[0] - 1)
+    k = np.clip(k, 0, columns - 1)
+    i0 = np.minimum(np.floor(i).astype(int), table.shape[0] - 2)
+    k0 = np.minimum(np.floor(k).astype(int), columns - 2)
+    fi, fk = (i - i0)[..., None], (k - k0)[..., None]
+    flat = table.reshape(-1, table.shape[2])
+    first = i0 * columns + k0
+    second = first + columns
+    low = flat[first] + fi * (flat[second] - flat[first])
+    high = flat[first + 1] + fi * (flat[second + 1] - flat[first + 1])
+    return _log_linear(low, high, fk)
+
+
 def _bilinear(table: np.ndarray, i: np.ndarray, k: np.ndarray, slice_index=None) -> np.ndarray:
     """Bilinear interpolation at fractional indices (i, k), edge samples clamped (an image texture's filter), of
     a table (rows, columns[, channels]) or, with per-point ``slice_index``, of its slices
@@ -438,9 +463,11 @@ class MultipleScatteringTable:
         return block.reshape(3, n_rows, n_nodes)
 
     def __call__(self, altitude_m: ArrayLike, cos_zenith: ArrayLike) -> np.ndarray:
-        """Psi_ms at altitude ``altitude_m`` (m, clamped to the atmosphere) and sun zenith cosine, (..., 3)."""
+        """Psi_ms at altitude ``altitude_m`` (m, clamped to the atmosphere) and sun zenith cosine, (..., 3):
+        linear in altitude, log-linear in the sun cosine as :meth:`scattered` (so that the mean of S_i over every
+        view is Psi_ms between the nodes too)."""
         i, k = self._indices(altitude_m, cos_zenith)
-        return _bilinear(self.psi, i, k)
+        return _linear_then_log_linear(self.psi, i, k)
 
     def scattered(self, altitude_m: ArrayLike, cos_zenith: ArrayLike, view_cos_zenith: ArrayLike,
                   view_toward_sun: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
@@ -448,7 +475,15 @@ class MultipleScatteringTable:
         Mie scattering coefficient, 1/sr per unit E_top, at altitude ``altitude_m`` (m) with the sun at zenith cosine
         ``cos_zenith``, for a view direction v with local zenith cosine ``view_cos_zenith`` and component
         ``view_toward_sun`` along the horizontal direction to the sun (v . x_sun; arrays that broadcast).
-        Interpolated linearly in the four table coordinates (altitude and sun as :meth:`__call__`)."""
+
+        Interpolated linearly in altitude and the two view coordinates at the two sun-cosine nodes around the point,
+        then log-linearly (geometrically) between them: across the terminator the light falls by orders of magnitude within a few degrees of sun, roughly
+        exponentially, so a straight line between two nodes lies far above it. Measured on the clear preset's sky
+        seen from the ground (5 deg up, away from the sun; ``MultipleScatteringTable`` built with 257 sun cosines
+        as the converged value): linear interpolation on the 33 nodes was 1.30x too bright at a sun 4 deg below
+        the horizon and 1.42x at 6 deg (the spectral reference's +27 % and +50 %, docs/reference_sky.md),
+        log-linear 0.96x and 0.99x (the zenith 0.99x and 1.00x, from 1.05x and 1.11x); by day the two differ by
+        under 0.3 %. Where either node is 0 (no light at all) the interpolation is linear."""
         i, k = self._indices(altitude_m, cos_zenith)
         vz = np.clip(np.asarray(view_cos_zenith, dtype=np.float64), -1.0, 1.0)
         across = np.sqrt(np.maximum(1.0 - vz * vz, 1e-12))
@@ -463,15 +498,17 @@ class MultipleScatteringTable:
             fraction = np.clip(x - low, 0.0, 1.0)
             base = base + low * stride
             pairs.append((1.0 - fraction, fraction))
-        # the 16 corners' weights as products of two precomputed pairs (altitude x sun, view cosine x view azimuth)
-        first = [[a * b for b in pairs[1]] for a in pairs[0]]
+        # linear in altitude and the view at the two sun-cosine nodes around the point (8 corners each), then
+        # log-linear between the two
         second = [[a * b for b in pairs[3]] for a in pairs[2]]
-        result = np.zeros(coords[0].shape + (6,))
-        for corner in range(16):
-            bits = [(corner >> axis) & 1 for axis in range(4)]
-            offset = sum(bit * stride for bit, stride in zip(bits, strides))
-            weight = first[bits[0]][bits[1]] * second[bits[2]][bits[3]]
-            result += weight[..., None] * self.in_scattering[base + offset]
+        low, high = np.zeros(coords[0].shape + (6,)), np.zeros(coords[0].shape + (6,))
+        for corner in range(8):
+            bits = [(corner >> axis) & 1 for axis in range(3)]
+            row = base + bits[0] * strides[0] + bits[1] * strides[2] + bits[2] * strides[3]
+            weight = (pairs[0][bits[0]] * second[bits[1]][bits[2]])[..., None]
+            low += weight * self.in_scattering[row]
+            high += weight * self.in_scattering[row + strides[1]]
+        result = _log_linear(low, high, pairs[1][1][..., None])
         return result[..., :3], result[..., 3:]
 
 

@@ -130,8 +130,11 @@ SPECTRAL_REFERENCE_TWILIGHT_ZENITH_B_OVER_R = {-2.0: 2.59, -4.0: 3.4, -6.0: 4.46
 def test_ozone_keeps_the_twilight_zenith_blue():
     """The reason ozone is in the default: with the sun below the horizon the zenith is lit by light that crossed
     the layer at a slant, and ozone takes its red and green. Precise with multiple scattering, the clear preset: the
-    zenith's B/R more than doubles at a sun 4 deg down, lies within 8 % of the spectral reference's at -2, -4
-    and -6 deg (measured 0-5 %; without ozone: half of it or less), and hardly moves at noon."""
+    zenith's B/R more than doubles at a sun 4 deg down, lies within 10 % of the spectral reference's at -2, -4
+    and -6 deg (measured -5.7, -9.0 and -6.5 % since the multiple-scattering table interpolates log-linearly in
+    the sun's cosine, which brought the twilight sky's luminance within 2-7 % of the reference at the zenith and
+    away from the sun at -4 and -6 deg, from +4 to +50 %; linearly it read 0-5 % low in B/R with that surplus of
+    blue light; without ozone: half of it or less), and hardly moves at noon."""
     clear = load("clear").atmosphere
     without = clear.replace(ozone_column_du=0.0)
     zenith = np.array([0.0, 0.0, 1.0])
@@ -143,6 +146,6 @@ def test_ozone_keeps_the_twilight_zenith_blue():
 
     assert blue_over_red(clear, -4.0) > 2.0 * blue_over_red(without, -4.0)
     for sun_deg, reference in SPECTRAL_REFERENCE_TWILIGHT_ZENITH_B_OVER_R.items():
-        assert blue_over_red(clear, sun_deg) == pytest.approx(reference, rel=0.08), sun_deg
+        assert blue_over_red(clear, sun_deg) == pytest.approx(reference, rel=0.10), sun_deg
         assert blue_over_red(without, sun_deg) < 0.6 * reference, sun_deg
     assert blue_over_red(clear, 60.0) == pytest.approx(blue_over_red(without, 60.0), rel=0.05)

@@ -324,7 +324,9 @@ def test_an_optically_thin_atmosphere_scatters_once():
 @pytest.mark.parametrize("preset", ["clear", "overcast", "mars"])
 def test_the_view_dependent_multiple_scattering_averages_to_the_mean_radiance(preset):
     # S_i(v) = integral Phi_i(w . v) L(w) dw; over every view direction v its mean is the mean radiance Psi_ms
-    # (each phase function integrates to 1). Measured within 0.4 % (the discrete phase weights).
+    # (each phase function integrates to 1). Measured within 0.4 % at the nodes (the discrete phase weights);
+    # between sun-cosine nodes S is interpolated log-linearly per view and Psi_ms of the mean, whose geometric
+    # means differ (the mean of geometric means is below the geometric mean of the means): 1.4 % at most here.
     atm = EARTH if preset == "clear" else load(preset).atmosphere
     _, ms = atmosphere_tables(atm)
     rng = np.random.default_rng(0)
@@ -332,8 +334,8 @@ def test_the_view_dependent_multiple_scattering_averages_to_the_mean_radiance(pr
     views /= np.linalg.norm(views, axis=1, keepdims=True)
     for altitude, cos_sun in ((0.0, 0.8), (0.0, 0.05), (2000.0, -0.05), (20_000.0, 0.3)):
         s_r, s_m = ms.scattered(np.full(len(views), altitude), np.full(len(views), cos_sun), views[:, 2], views[:, 0])
-        np.testing.assert_allclose(s_r.mean(axis=0), ms(altitude, cos_sun), rtol=0.01)
-        np.testing.assert_allclose(s_m.mean(axis=0), ms(altitude, cos_sun), rtol=0.01)
+        np.testing.assert_allclose(s_r.mean(axis=0), ms(altitude, cos_sun), rtol=0.02)
+        np.testing.assert_allclose(s_m.mean(axis=0), ms(altitude, cos_sun), rtol=0.02)
 
 
 @pytest.mark.parametrize("name, low, high", [("overcast_low_sun", 0.55, 1.1), ("sunset_toward", 0.88, 1.08),
@@ -453,7 +455,9 @@ def test_key_tiles_of_a_pan_a_climb_a_turn_and_a_jump():
 
 def test_blended_key_tiles_follow_the_tile_baked_between_them():
     """Half way between two key tiles (the worst place), the blend against the tile baked there: relative luminance
-    error, median and 99th percentile (tools/measure_key_tiles.py prints the whole table)."""
+    error, median and 99th percentile (tools/measure_key_tiles.py prints the whole table). The 6 -> 5 deg pair
+    straddles a sun-cosine node of the multiple-scattering table (5.7 deg), whose light is log-linear on each side
+    since December 2026: aerial 0.37 % / 0.55 % measured (0.20 % / 0.30 % when it was linear)."""
     first = bake_tile(EARTH, 2.0, math.radians(20.0), max_distance_m=shared_max_distance([2.0, 400.0], EARTH))
     second = bake_tile(EARTH, 400.0, math.radians(18.0), max_distance_m=first.max_distance_m)
     same = blend_tiles(first, second, 0.0, 2.0, EARTH)
@@ -462,7 +466,7 @@ def test_blended_key_tiles_follow_the_tile_baked_between_them():
     with pytest.raises(ValueError):
         blend_tiles(first, bake_tile(EARTH, 2.0, math.radians(18.0)), 0.5, 200.0, EARTH)   # its own D
     for first_key, second_key, median, high in (((2.0, 20.0), (2.0, 18.0), 0.002, 0.005),
-                                                ((2.0, 6.0), (2.0, 5.0), 0.003, 0.005),
+                                                ((2.0, 6.0), (2.0, 5.0), 0.005, 0.007),
                                                 ((2.0, 1.5), (2.0, 1.0), 0.003, 0.03),
                                                 ((300.0, 5.0), (570.0, 5.0), 0.003, 0.015),
                                                 ((3000.0, 20.0), (3500.0, 20.0), 0.003, 0.02)):
