@@ -477,8 +477,9 @@ class MultipleScatteringTable:
         ``view_toward_sun`` along the horizontal direction to the sun (v . x_sun; arrays that broadcast).
 
         Interpolated linearly in altitude and the two view coordinates at the two sun-cosine nodes around the point,
-        then log-linearly (geometrically) between them: across the terminator the light falls by orders of magnitude within a few degrees of sun, roughly
-        exponentially, so a straight line between two nodes lies far above it. Measured on the clear preset's sky
+        then log-linearly (geometrically) between them: across the terminator the light falls by orders of
+        magnitude within a few degrees of sun, roughly exponentially, so a straight line between two nodes lies far
+        above it. Measured on the clear preset's sky
         seen from the ground (5 deg up, away from the sun; ``MultipleScatteringTable`` built with 257 sun cosines
         as the converged value): linear interpolation on the 33 nodes was 1.30x too bright at a sun 4 deg below
         the horizon and 1.42x at 6 deg (the spectral reference's +27 % and +50 %, docs/reference_sky.md),
