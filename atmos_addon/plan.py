@@ -138,12 +138,16 @@ def mode_for(facts: SceneFacts) -> tuple[str, str | None]:
     return wanted, None
 
 
+def chosen_level(quality: str, auto_level: str) -> str:
+    """The level a Quality setting asks for: its own, or for Auto its last choice ("fast" before it has chosen)."""
+    if quality == "AUTO":
+        return auto_level if auto_level in LEVELS else "fast"
+    return quality.lower()
+
+
 def level_for(facts: SceneFacts, mode: str) -> tuple[str, str | None]:
     """The aerial perspective's level, and the sentence that says why it is not the setting's (or None)."""
-    if facts.quality == "AUTO":
-        level = facts.auto_level if facts.auto_level in LEVELS else "fast"
-    else:
-        level = facts.quality.lower()
+    level = chosen_level(facts.quality, facts.auto_level)
     if mode == "IN_RENDER" and level != "fast":
         return "fast", NOTE_IN_RENDER_FAST
     return level, None

@@ -59,24 +59,22 @@ def restore_former_defaults(settings) -> list[str]:
 
 #: The number a file stores for the retired Balanced quality level (the Quality enum's items are numbered).
 RETIRED_BALANCED = 1
-#: What a scene saved at Balanced opens with: Fast, Balanced's sky and single scattering with a constant density
-#: along the ray (against every scattering order both were 48-89 % dark by day: Precise with Multiple Scattering is
-#: the complete atmosphere, the artist's choice to make).
-BALANCED_UPGRADE = {"quality": "FAST"}
+#: The Quality a scene saved at Balanced opens with: Fast, Balanced's sky and single scattering with a constant
+#: density along the ray (against every scattering order both were 48-89 % dark by day: Precise with Multiple
+#: Scattering is the complete atmosphere, the artist's choice to make).
+BALANCED_UPGRADE = "FAST"
 
 
 def upgrade_retired_settings(scene) -> list[str]:
     """Upgrade a loaded ``scene``'s retired choices in place (whether the effect is on or off): a Quality saved as
     Balanced becomes :data:`BALANCED_UPGRADE`, Auto's remembered "balanced" choice "fast" (Auto chooses again on
-    the next Refresh), and the Balanced
-    level's shader parameters go (``parameters.clear_retired_parameters``; the effect on only, which owns them).
-    Returns one sentence per scene changed (none for a file saved by this version). The caller holds the update
-    callbacks back and re-syncs afterwards."""
+    the next Refresh), and the Balanced level's shader parameters go (``parameters.clear_retired_parameters``; the
+    effect on only, which owns them). Returns one sentence per scene changed (none for a file saved by this
+    version). The caller holds the update callbacks back and re-syncs afterwards."""
     settings = scene.atmos
     notes = []
     if settings.is_property_set("quality") and settings.get("quality") == RETIRED_BALANCED:
-        for name, value in BALANCED_UPGRADE.items():
-            setattr(settings, name, value)
+        settings.quality = BALANCED_UPGRADE
         notes.append(f"Atmos: scene '{scene.name}': {RETIRED_BALANCED_NOTE}; it opens at Fast, with the same sky "
                      "(Precise with Multiple Scattering is the complete atmosphere)")
     if settings.auto_level == "balanced":

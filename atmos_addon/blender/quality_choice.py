@@ -17,7 +17,7 @@ import numpy as np
 from mathutils import Vector
 
 from ..physics.quality import Level, SceneSummary, choose_level, level_summary, nearest_cases
-from ..plan import LEVELS, NOTE_IN_RENDER_FAST
+from ..plan import NOTE_IN_RENDER_FAST, chosen_level
 from . import facts, scene_reading
 
 #: Object types with geometry the camera sees (their bounding boxes count for the summary).
@@ -84,9 +84,7 @@ def summarize(scene) -> SceneSummary:
 
 def level_of(settings) -> str:
     """The level the node group is built for: "fast" or "precise" (Auto's last choice for AUTO)."""
-    if settings.quality == "AUTO":
-        return settings.auto_level if settings.auto_level in LEVELS else "fast"
-    return settings.quality.lower()
+    return chosen_level(settings.quality, settings.auto_level)
 
 
 def resolve(scene) -> str:

@@ -56,7 +56,7 @@ def sync_scene(scene) -> None:
     diameter = float(settings.sun_angular_diameter)
     sun_radius = 0.5 * diameter
     irradiance, colour, strength = _sun_values(scene, key, atmosphere, elevation_rad, sun_radius,
-                                                           float(settings.sun_limb_darkening))
+                                               float(settings.sun_limb_darkening))
     enabled = settings.enabled
     if enabled and settings.sky_enabled:
         world.write_sky_lighting_table(scene, atmosphere)

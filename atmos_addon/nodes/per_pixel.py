@@ -90,12 +90,14 @@ def _ensure_interface(tree: bpy.types.NodeTree) -> None:
     present = [(item.name, item.in_out, item.socket_type) for item in items]
     if present == wanted:
         return
+    kept = set()
     for item, key in zip(items, present):
-        if key not in wanted or present.count(key) > 1:
-            tree.interface.remove(item)
-            present[present.index(key)] = None
+        if key in wanted and key not in kept:
+            kept.add(key)
+        else:
+            tree.interface.remove(item)   # no longer wanted, or a second copy
     for name, in_out, socket_type in wanted:
-        if (name, in_out, socket_type) not in present:
+        if (name, in_out, socket_type) not in kept:
             tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
 
 

@@ -201,6 +201,16 @@ class SunTransmittanceTable:
         return np.where(lit[..., None], np.exp(-tau), 0.0)
 
 
+def _cell(rows: int, columns: int, i: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(i0, k0, fi, fk): the lower corner of the table cell that holds the fractional indices (i, k), edge samples
+    clamped (an image texture's filter), and the fractions within it."""
+    i = np.clip(i, 0, rows - 1)
+    k = np.clip(k, 0, columns - 1)
+    i0 = np.minimum(np.floor(i).astype(int), rows - 2)
+    k0 = np.minimum(np.floor(k).astype(int), columns - 2)
+    return i0, k0, i - i0, k - k0
+
+
 def _log_linear(low: np.ndarray, high: np.ndarray, fraction: np.ndarray) -> np.ndarray:
     """low^(1 - f) high^f: the straight line between two values in log space (light that falls exponentially), or
     the straight line itself where either is not positive."""
@@ -213,11 +223,8 @@ def _linear_then_log_linear(table: np.ndarray, i: np.ndarray, k: np.ndarray) -> 
     """Interpolation of a table (rows, columns, channels) at fractional indices (i, k), edge samples clamped: linear
     along the rows in each of the two columns around k, then :func:`_log_linear` between the columns."""
     columns = table.shape[1]
-    i = np.clip(i, 0, table.shape[0] - 1)
-    k = np.clip(k, 0, columns - 1)
-    i0 = np.minimum(np.floor(i).astype(int), table.shape[0] - 2)
-    k0 = np.minimum(np.floor(k).astype(int), columns - 2)
-    fi, fk = (i - i0)[..., None], (k - k0)[..., None]
+    i0, k0, fi, fk = _cell(table.shape[0], columns, i, k)
+    fi, fk = fi[..., None], fk[..., None]
     flat = table.reshape(-1, table.shape[2])
     first = i0 * columns + k0
     second = first + columns
@@ -231,11 +238,8 @@ def _bilinear(table: np.ndarray, i: np.ndarray, k: np.ndarray, slice_index=None)
     a table (rows, columns[, channels]) or, with per-point ``slice_index``, of its slices
     (rows, slices, columns, channels)."""
     columns = table.shape[1] if slice_index is None else table.shape[2]
-    i = np.clip(i, 0, table.shape[0] - 1)
-    k = np.clip(k, 0, columns - 1)
-    i0 = np.minimum(np.floor(i).astype(int), table.shape[0] - 2)
-    k0 = np.minimum(np.floor(k).astype(int), columns - 2)
-    fi, fk = (i - i0).astype(table.dtype), (k - k0).astype(table.dtype)
+    i0, k0, fi, fk = _cell(table.shape[0], columns, i, k)
+    fi, fk = fi.astype(table.dtype), fk.astype(table.dtype)
     if table.ndim == 3 or slice_index is not None:
         fi, fk = fi[..., None], fk[..., None]
 
@@ -479,12 +483,12 @@ class MultipleScatteringTable:
         Interpolated linearly in altitude and the two view coordinates at the two sun-cosine nodes around the point,
         then log-linearly (geometrically) between them: across the terminator the light falls by orders of
         magnitude within a few degrees of sun, roughly exponentially, so a straight line between two nodes lies far
-        above it. Measured on the clear preset's sky
-        seen from the ground (5 deg up, away from the sun; ``MultipleScatteringTable`` built with 257 sun cosines
-        as the converged value): linear interpolation on the 33 nodes was 1.30x too bright at a sun 4 deg below
-        the horizon and 1.42x at 6 deg (the spectral reference's +27 % and +50 %, docs/reference_sky.md),
-        log-linear 0.96x and 0.99x (the zenith 0.99x and 1.00x, from 1.05x and 1.11x); by day the two differ by
-        under 0.3 %. Where either node is 0 (no light at all) the interpolation is linear."""
+        above it. Measured on the clear preset's sky seen from the ground (5 deg up, away from the sun;
+        ``MultipleScatteringTable`` built with 257 sun cosines as the converged value): linear interpolation on the
+        33 nodes was 1.30x too bright at a sun 4 deg below the horizon and 1.42x at 6 deg (the spectral reference's
+        +27 % and +50 %, docs/reference_sky.md), log-linear 0.96x and 0.99x (the zenith 0.99x and 1.00x, from 1.05x
+        and 1.11x); by day the two differ by under 0.3 %. Where either node is 0 (no light at all) the
+        interpolation is linear."""
         i, k = self._indices(altitude_m, cos_zenith)
         vz = np.clip(np.asarray(view_cos_zenith, dtype=np.float64), -1.0, 1.0)
         across = np.sqrt(np.maximum(1.0 - vz * vz, 1e-12))
