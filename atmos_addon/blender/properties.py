@@ -430,7 +430,7 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         name="Multiple Scattering",
         description="Precise quality: add the light scattered more than once, every order, off the air and the "
                     "ground (Ground Albedo), to the haze and the sky: most of a clear day's skylight, a blue zenith "
-                    "at a low sun, the blue hour. Within 1-3 % of a Monte Carlo reference by day (docs/quality.md)",
+                    "at a low sun, the blue hour. Within 1-2 % of a Monte Carlo reference by day (docs/quality.md)",
         default=True,
         update=_on_quality,
     )

@@ -53,10 +53,11 @@ ozone's beta_O3 times its slant column from the same grid. beta_ex everywhere is
 two exponential layers and, where the atmosphere has ozone, its absorbing tent 10-40 km up.
 
 Multiple scattering (:class:`MultipleScatteringTable`, per atmosphere): every order of the light scattered at
-least once, as the mean radiance Psi_ms(h, mu_s) at each altitude and sun (Hillaire 2020's isotropic assumption,
-with the orders carried from point to point by one linear solve), and what a ray looking along v in-scatters of
-the radiance field by direction with the true phase functions, S_R(h, mu_s, v) and S_M: the second order is exact
-up to the direction sampling. The ground reflects the sun as a Lambertian surface of ``ground_albedo``.
+least once, as its mean radiance Psi_ms(h, mu_s) and first moment (the P1 field) at each altitude and sun, the
+orders carried from point to point by one linear solve with the haze's forward peak split off (delta-Eddington),
+and what a ray looking along v in-scatters of the radiance field by direction with the true phase functions,
+S_R(h, mu_s, v) and S_M: the second order is exact up to the direction sampling. The ground reflects the sun and
+the sky as a Lambertian surface of ``ground_albedo``.
 
 Units: lengths m, angles rad, coefficients 1/m, E_top and radiances W/m^2 (per sr for radiances) in Blender's
 sun-strength unit. :func:`evaluate` reproduces the shader's float32 sampling step by step.
@@ -272,18 +273,33 @@ def _direction_grid(n_zenith: int, n_azimuth: int) -> tuple[np.ndarray, np.ndarr
 
 @dataclass(frozen=True)
 class _Rays:
-    """The rays a :class:`MultipleScatteringTable` marches from the nodes of one altitude, in every direction (D) for
-    every sun cosine (M), with S steps each (arrays as marked)."""
+    """The rays a :class:`MultipleScatteringTable` marches from the nodes of one altitude, in each marched direction
+    (D) for every sun cosine (M), with S steps each (arrays as marked)."""
 
     altitude_m: np.ndarray        #: (D, S) altitude of each step's midpoint
     sun_cosine: np.ndarray        #: (M, D, S) sun zenith cosine there
-    step_scattering: np.ndarray   #: (D, S, 3) T sigma_s dt: the step's scattering seen from the node
-    step_rayleigh: np.ndarray     #: (D, S, 3) T beta_R n_R dt
-    step_mie: np.ndarray          #: (D, S, 3) T beta_M n_M dt
+    step_scattering: np.ndarray   #: (D, S, 3) T' sigma_s' dt: the step's scattering seen from the node (delta split)
+    step_rayleigh: np.ndarray     #: (D, S, 3) T' beta_R n_R dt
+    step_mie: np.ndarray          #: (D, S, 3) T' beta_M n_M dt
     radius_m: np.ndarray          #: (D, S) radius of each step's midpoint
-    to_ground: np.ndarray         #: (D, 3) T_ground albedo where the ray meets the ground, else 0
+    to_ground: np.ndarray         #: (D, 3) T'_ground albedo where the ray meets the ground, else 0
     ground_radius_m: np.ndarray   #: (D,) radius where the ray ends
     ground_sun_cosine: np.ndarray  #: (M, D) sun zenith cosine at the ray's end
+    view_up: np.ndarray            #: (D, S) w . up_p: the ray's direction against the local zenith at each step
+
+
+def forward_fraction(atm: Atmosphere) -> np.ndarray:
+    """f = g^2 (3,): the share of the haze's scattering that the multiple-scattering table treats as not scattered
+    at all (delta-Eddington: Joseph, Wiscombe & Weinman 1976, "The Delta-Eddington Approximation for Radiative Flux
+    Transfer"). Henyey-Greenstein's forward peak is cut off as a delta function, f of the scattering: that light goes
+    on in its direction as if it had not scattered (the haze's extinction less f beta_M), and the rest scatters with
+    mean cosine g' = (g - f) / (1 - f), a field the first moment describes far better than the peaked whole."""
+    g = np.broadcast_to(np.asarray(atm.mie_g, dtype=np.float64), (3,))
+    return g * g
+
+
+#: Unknowns per node of the multiple-scattering solve: the mean radiance J and its first moment H (up, sun).
+_MOMENTS = 3
 
 
 class MultipleScatteringTable:
@@ -297,20 +313,30 @@ class MultipleScatteringTable:
     cell, 1.5x too bright on average at a sun 4 deg down). From each node rays in 2 ``n_zenith`` x ``n_azimuth``
     directions w (:func:`_direction_grid`: Gauss-Legendre in each hemisphere, even azimuths symmetric about the
     sun's; solid angles dOmega) are marched in ``n_steps`` steps to the ground or the top, t = length u^2 with u at
-    the steps' middles (crowded at the node, where the air is densest for the rays that climb), T the
-    transmittance from the node, p the point at distance t, where the sun has zenith cosine mu_s(p):
+    the steps' middles (crowded at the node, where the air is densest for the rays that climb), p the point at
+    distance t, where the sun has zenith cosine mu_s(p), up_p and sun_p its local zenith and horizontal toward the sun.
 
-        L_1(x, w) = integral T (beta_R n_R Phi_R + beta_M n_M Phi_HG)(w . sun) T_sun dt + T_g T_sun mu_s,g albedo / pi
-        J_1(x)    = (1 / 4 pi) sum_w L_1(x, w) dOmega                         light scattered once: its mean radiance
-        (A J)(x)  = (1 / 4 pi) sum_w [integral T sigma_s J(p) dt + T_g albedo J(ground point)] dOmega
+    The haze's Henyey-Greenstein phase function is split the delta-Eddington way (:func:`forward_fraction`): f = g^2
+    of its scattering is a delta function forward (light that goes on as if not scattered) and the rest scatters with
+    mean cosine g' = (g - f) / (1 - f). So along the rays T' is the transmittance with the haze's extinction less
+    f beta_M n_M, sigma_s' = beta_R n_R + (1 - f) beta_M n_M the scattering that turns light:
 
-    A J is the mean radiance at x of light scattered once more, isotropically, by every point p (and reflected by a
-    Lambertian ground of ``ground_albedo`` that sees radiance J: irradiance pi J, radiance albedo J). J(p) is read
-    off the nodes bilinearly, so A is a matrix over the nodes (per channel) and the mean radiance of every order,
-    Psi_ms = J_1 + A J_1 + A^2 J_1 + ... = (I - A)^-1 J_1, is one linear solve (:attr:`psi`). The radiance field
-    by direction is then the once-scattered light plus the higher orders carried to x along each direction,
+        L_1(x, w) = integral T' (beta_R n_R Phi_R + beta_M n_M Phi_HG)(w . sun) T_sun dt + T'_g T_sun mu_s,g albedo / pi
 
-        L(x, w) = L_1(x, w) + integral T sigma_s Psi_ms(p) dt + T_g albedo Psi_ms(ground point),
+    (the sun's own beam keeps the true phase function and transmittance: the single scattering is exact). At every
+    node the light of every order is described by its mean radiance J and its first moment H = (1 / 4 pi) integral
+    L w dOmega (two components, up and toward the sun: the light is symmetric about the sun's plane), the P1 field
+    L(w) ~ J + 3 H . w, and a point that scatters it sends J sigma_s' + 3 (g - f) beta_M n_M H . w back along w
+    (Rayleigh's mean cosine is 0). With Q(p, w) that emission, read off the nodes bilinearly, and the Lambertian ground
+    of ``ground_albedo`` lit by the sky's irradiance E (from the same field over the upper hemisphere):
+
+        (J, H)(x) = (1 / 4 pi) sum_w (1, w) [L_1(x, w) + integral T' Q(p, w) dt + T'_g albedo E(ground point) / pi]
+                    dOmega
+
+    is linear in the nodes' (J, H): one linear solve, (I - A) X = X_1, over 3 unknowns per node and channel
+    (:attr:`psi` is J, :attr:`first_moment` H). The radiance field by direction is then
+
+        L(x, w) = L_1(x, w) + integral T' Q(p, w) dt + T'_g albedo E(ground point) / pi,
 
     and a view ray looking along v in-scatters it with the true phase functions at its own point (the light arriving
     from w is scattered by the angle whose cosine is w . v):
@@ -319,19 +345,31 @@ class MultipleScatteringTable:
 
     tabulated over v's zenith cosine and its azimuth from the sun (:meth:`scattered`; the discrete phase weights of
     each v normalised to sum to 1, so the sharp forward peak of the haze neither gains nor loses light between the
-    directions). So the second order is exact up to the direction sampling; only orders from the third on are
-    assumed isotropic at their last-but-one point.
+    directions). So the second order is exact up to the direction sampling (and the delta cut of the haze's peak);
+    the third and higher orders are a P1 field at their last-but-one point.
 
-    Why not Hillaire's Psi_ms = L_2 / (1 - f_ms) with sigma_s Psi_ms in-scattered isotropically (this table until
-    December 2026), measured against the complete reference (``tools/bench_accuracy.py``, Monte Carlo): his series
-    assumes the higher orders at x are those of a medium lit everywhere like x (A J ~ f_ms J(x)), which misses the
-    light that enters a thick haze from the lit sky above and diffuses down to where the sun no longer reaches
-    (L_in at an overcast 1 deg sun 0.2x the reference, now 0.5-0.7x); and an isotropic last scattering cannot
-    hold that the multiply scattered light of a low sun is far brighter toward the sun than away (the reference:
-    3x on Mars at a 2 deg sun). Worst pixel luminance error by day 4-7 %, now 0.8-1.3 %; at a 1 deg sun 19-31 %,
-    now 5-8 %; blue hour 66 %, now 26 % (docs/quality.md). The table costs about 2 s to build (0.3 s before);
-    the directions, steps and view grid were chosen by that bench (more directions change no day case by over
-    0.5 % and the low suns by a few %).
+    Measured against the complete reference (``tools/bench_accuracy.py --paths 4000``, Monte Carlo, every order;
+    worst pixel luminance error, docs/quality.md), three steps:
+
+    * Hillaire 2020's Psi_ms = L_2 / (1 - f_ms), in-scattered isotropically (this table until December 2026): his
+      series assumes the higher orders at x are those of a medium lit everywhere like x (A J ~ f_ms J(x)), which
+      misses the light that enters a thick haze from the lit sky above and diffuses down to where the sun no
+      longer reaches. By day 1.2-6.9 %, the sunsets 19 % / 31 %, blue hour 68 %, overcast 1 deg sun 82 %, Mars
+      sunset 81 %.
+    * Every order carried between the nodes as an isotropic mean radiance (J alone, the true extinction): by day
+      1.1-3.0 %, the sunsets 5.4 % / 6.6 %, Mars noon 9.7 %, blue hour 23 %, overcast 34 %, Mars sunset 39 %. An
+      isotropic third order cannot hold that the light of a forward-scattering haze at a low sun keeps travelling
+      away from the sun: the overcast 0.6-0.8x the reference, Mars at sunset 0.6x toward the sun and 1.2-1.9x away.
+    * With the first moment and the delta-Eddington split (this table): by day 1.1-2.1 %, the sunsets 1.7 % /
+      1.6 %, Mars noon 5.5 %, overcast 5.8 %, blue hour 8.8 %, Mars sunset 18 %. The first moment alone (the true
+      phase function's g, no delta cut) swung Mars the other way (0.3-0.4x away from the sun in blue: a P1 field of
+      a peaked phase function goes negative behind it) and left the overcast 0.85-0.95x; the delta cut alone
+      (f = g, an isotropic rest) 1.2-1.6x too bright.
+
+    The table costs about 4 s to build (2.7 s with J alone, which marched every direction; the light is symmetric
+    about the sun's plane, so only the half with w_y > 0 is marched now and the other half mirrored: the same
+    numbers for half the work). The directions, steps and view grid were chosen by the bench (more directions
+    change no day case by over 0.5 % and the low suns by a few %).
     """
 
     def __init__(self, atm: Atmosphere, sun_table: SunTransmittanceTable, ground_albedo=DEFAULT_GROUND_ALBEDO,
@@ -344,55 +382,89 @@ class MultipleScatteringTable:
         self._sun_table = sun_table
         u = np.linspace(-1.0, 1.0, n_cosines)
         self._mu_s = np.sign(u) * u * u     # crowded at the terminator (mu_s = 0), where the light changes fastest
+        if n_azimuth % 2:
+            raise ValueError(f"n_azimuth must be even (the directions pair up about the sun's plane), not {n_azimuth}")
         self._dirs, solid_angle = _direction_grid(n_zenith, n_azimuth)              # (D, 3), (D,)
-        n_dirs = len(self._dirs)
-        share = (solid_angle / (4.0 * np.pi))[:, None]                              # (D, 1): dOmega / 4 pi
+        # The light is symmetric about the plane of the zenith and the sun, and so is the direction grid: the rays
+        # are marched in the half with w_y > 0 only (counted twice); each direction of the other half reads its
+        # mirror image (``mirror``: index into the marched half). Half the work, the same numbers.
+        marched = self._dirs[:, 1] > 0.0
+        ring, azimuth = np.divmod(np.arange(len(self._dirs)), n_azimuth)
+        mirror = ring * (n_azimuth // 2) + np.minimum(azimuth, n_azimuth - 1 - azimuth)
+        self._marched = self._dirs[marched]                                         # (D, 3): D the marched half
+        n_dirs = len(self._marched)
+        share = (2.0 * solid_angle[marched] / (4.0 * np.pi))[:, None]               # (D, 1): dOmega / 4 pi, twice
         sun_dirs = np.stack([np.sqrt(1.0 - self._mu_s ** 2), np.zeros_like(self._mu_s), self._mu_s], axis=-1)
-        self._along = sun_dirs @ self._dirs.T                                       # (M, D): sun . w
+        self._along = sun_dirs @ self._marched.T                                    # (M, D): sun . w
         self._steps = (np.arange(n_steps) + 0.5) / n_steps
         altitudes = atm.atmosphere_height * np.linspace(0.0, 1.0, n_altitudes) ** 2
         phase_r = phase_rayleigh(self._along)[:, :, None, None]                     # (M, D, 1, 1)
         phase_m = phase_hg(self._along, atm.mie_g)[:, :, None, :]                   # (M, D, 1, 3)
         n_nodes = n_altitudes * n_cosines
+        # What the three unknowns of a node (J, H_up, H_sun) take of the light arriving at it along w: 1, w_up, w_sun
+        # (x's frame: z up, the sun in the x-z plane toward +x).
+        project = np.stack([np.ones(n_dirs), self._marched[:, 2], self._marched[:, 0]])   # (3, D)
         once = np.zeros((n_altitudes, n_cosines, n_dirs, 3))                        # L_1(x, w)
-        transport = np.zeros((3, n_nodes, n_nodes))                                 # A per channel
+        transport = np.zeros((3, _MOMENTS * n_nodes, _MOMENTS * n_nodes))          # A per channel
         ground_rows = []                       # per altitude: the ground points' weights on the ground's sun cosines
-        upward = (np.maximum(self._dirs[:, 2], 0.0) * solid_angle)[:, None]         # (D, 1): cos w dOmega, sky only
-        for j, altitude in enumerate(altitudes):
-            rays = self._rays(float(altitude))
+        upward = 2.0 * np.maximum(self._marched[:, 2], 0.0) * solid_angle[marched]  # (D,): cos w dOmega, sky only
+        all_rays = [self._rays(float(altitude)) for altitude in altitudes]
+        for j, rays in enumerate(all_rays):
             t_sun = sun_table(np.broadcast_to(rays.radius_m, rays.sun_cosine.shape), rays.sun_cosine)  # (M, D, S, 3)
             light = np.sum(t_sun * (rays.step_rayleigh[None] * phase_r + rays.step_mie[None] * phase_m), axis=2)
             lit_ground = np.maximum(rays.ground_sun_cosine, 0.0)[..., None] * sun_table(
                 np.broadcast_to(rays.ground_radius_m, rays.ground_sun_cosine.shape) + 1e-3, rays.ground_sun_cosine)
             once[j] = light + (rays.to_ground / np.pi)[None] * lit_ground
-            rows = slice(j * n_cosines, (j + 1) * n_cosines)
-            transport[:, rows] = self._matrix_rows(np.broadcast_to(rays.altitude_m, rays.sun_cosine.shape),
-                                                   rays.sun_cosine, rays.step_scattering * share[:, :, None])
-            ground_rows.append(self._matrix_rows(np.zeros(rays.ground_sun_cosine.shape), rays.ground_sun_cosine,
-                                                 rays.to_ground * share / np.pi)[:, :, :n_cosines])   # (3, M, M_g)
-            if j == 0:   # the ground's irradiance from the sky: E_1 of the once-scattered light, and E_B of Psi_ms
-                sky_once = np.einsum("mdc,d->mc", light, upward[:, 0])              # (M_g, 3)
-                sky_more = self._matrix_rows(np.broadcast_to(rays.altitude_m, rays.sun_cosine.shape),
-                                             rays.sun_cosine, rays.step_scattering * upward[:, :, None])  # (3, M_g, N)
-        # The ground reflects the sky's light as a Lambertian surface: radiance albedo / pi E, E = E_1 + E_B Psi_ms
-        # the irradiance from the upper hemisphere (not Psi_ms at the ground, whose mean over every direction would
-        # count the ground's own light as lighting it).
+            emitted = self._emission(rays)                                          # (3, M, D, S, 3)
+            # (out a, in b): sum over w of project_a(w) dOmega / 4 pi times what the steps along w send of b
+            weights = emitted[None] * (project * share[:, 0])[:, None, None, :, None, None]
+            blocks = self._matrix_rows(rays.altitude_m, rays.sun_cosine, weights)   # (3, 3, 3, M, N)
+            for a in range(_MOMENTS):
+                transport[:, a * n_nodes + j * n_cosines:a * n_nodes + (j + 1) * n_cosines] = np.concatenate(
+                    list(blocks[a]), axis=-1)
+            ground = self._matrix_rows(np.zeros(()), rays.ground_sun_cosine,
+                                       rays.to_ground[None, None] * (project * share[:, 0] / np.pi)[:, None, :, None])
+            ground_rows.append(ground[..., :n_cosines])                             # (3 out, 3 ch, M, M_g)
+            if j == 0:   # the ground's irradiance from the sky: E_1 of the once-scattered light, and E_B of the rest
+                sky_once = np.einsum("mdc,d->mc", light, upward)                    # (M_g, 3)
+                sky_more = np.concatenate(list(self._matrix_rows(
+                    rays.altitude_m, rays.sun_cosine, emitted * upward[None, None, :, None, None])),
+                    axis=-1)                                                        # (3, M_g, 3N)
+        # The ground reflects the sky's light as a Lambertian surface: radiance albedo / pi E, E = E_1 + E_B X the
+        # irradiance from the upper hemisphere (not J at the ground, whose mean over every direction would count the
+        # ground's own light as lighting it).
         first = np.einsum("jmdc,d->jmc", once, share[:, 0])                          # J_1
-        source = first + np.stack([np.einsum("cmg,gc->mc", g, sky_once) for g in ground_rows])
-        transport += np.concatenate([np.einsum("cmg,cgn->cmn", g, sky_more) for g in ground_rows], axis=1)
-        identity = np.eye(n_nodes)
-        psi = np.stack([np.linalg.solve(identity - transport[ch], source[..., ch].reshape(n_nodes))
-                        for ch in range(3)], axis=-1)
+        source = np.concatenate([np.einsum("jmdc,d->jmc", once, share[:, 0] * project[a]).reshape(n_nodes, 3)
+                                 + np.concatenate([np.einsum("cmg,gc->mc", rows[a], sky_once) for rows in ground_rows])
+                                 for a in range(_MOMENTS)])                          # (3N, 3): J_1, H_1
+        for a in range(_MOMENTS):
+            transport[:, a * n_nodes:(a + 1) * n_nodes] += np.concatenate(
+                [np.einsum("cmg,cgn->cmn", rows[a], sky_more) for rows in ground_rows], axis=1)
+        identity = np.eye(_MOMENTS * n_nodes)
+        solved = np.stack([np.linalg.solve(identity - transport[ch], source[:, ch]) for ch in range(3)], axis=-1)
+        del transport
+        moments = solved.reshape(_MOMENTS, n_altitudes, n_cosines, 3)
         #: Psi_ms (altitudes, sun cosines, 3): the mean radiance of light scattered at least once, 1/sr per unit E_top.
-        self.psi = np.maximum(psi.reshape(n_altitudes, n_cosines, 3), 0.0)
+        self.psi = np.maximum(moments[0], 0.0)
+        #: H (altitudes, sun cosines, 2, 3): its first moment (1 / 4 pi) integral L w dOmega, along the local zenith and
+        #: the horizontal toward the sun, 1/sr per unit E_top.
+        self.first_moment = np.moveaxis(moments[1:], 0, 2).copy()
         #: J_1 (altitudes, sun cosines, 3): the mean radiance of light scattered exactly once.
         self.single = first
-        sky_irradiance = sky_once + np.einsum("cgn,nc->gc", sky_more, psi)           # E at the ground, (M_g, 3)
+        sky_irradiance = sky_once + np.einsum("cgn,nc->gc", sky_more, solved)        # E at the ground, (M_g, 3)
+        # Between sun-cosine nodes J is read log-linearly (it falls by orders of magnitude across the terminator) and
+        # H as J times the interpolated H / J, which changes slowly.
+        anisotropy = np.where(moments[0][:, :, None] > 0.0, self.first_moment
+                              / np.where(moments[0] > 0.0, moments[0], 1.0)[:, :, None], 0.0).reshape(
+                                  n_altitudes, n_cosines, 6)
         field = once
-        for j, altitude in enumerate(altitudes):                                    # + the higher orders by direction
-            rays = self._rays(float(altitude))
-            field[j] += np.sum(rays.step_scattering[None] * self(np.broadcast_to(rays.altitude_m, rays.sun_cosine
-                                                                                  .shape), rays.sun_cosine), axis=2)
+        for j, rays in enumerate(all_rays):                                         # + the higher orders by direction
+            emitted = self._emission(rays)
+            altitude_m = np.broadcast_to(rays.altitude_m, rays.sun_cosine.shape)
+            i, k = self._indices(altitude_m, rays.sun_cosine)
+            shape = _bilinear(anisotropy, i, k).reshape(i.shape + (2, 3))          # H / J, linear
+            field[j] += np.sum(self(altitude_m, rays.sun_cosine)                    # J, log-linear in the sun
+                               * (emitted[0] + emitted[1] * shape[..., 0, :] + emitted[2] * shape[..., 1, :]), axis=2)
             _, k = self._indices(0.0, rays.ground_sun_cosine)
             lit = np.stack([np.interp(k, np.arange(n_cosines), sky_irradiance[:, ch]) for ch in range(3)], axis=-1)
             field[j] += rays.to_ground[None] / np.pi * lit
@@ -400,6 +472,7 @@ class MultipleScatteringTable:
         view_a = np.linspace(0.0, np.pi, n_view_azimuths)[None, :]
         across = np.sqrt(1.0 - view_z ** 2)
         views = np.stack(np.broadcast_arrays(across * np.cos(view_a), across * np.sin(view_a), view_z), axis=-1)
+        field = field[:, :, mirror]                                                 # every direction of the grid
         cosines = views.reshape(-1, 3) @ self._dirs.T                               # (V, D): w . v
         weights_r = phase_rayleigh(cosines) * solid_angle
         weights_m = phase_hg(cosines, atm.mie_g) * solid_angle[:, None]             # (V, D, 3)
@@ -407,13 +480,14 @@ class MultipleScatteringTable:
         weights_m = weights_m / weights_m.sum(axis=1, keepdims=True)
         view_shape = (n_altitudes, n_cosines, n_view_cosines, n_view_azimuths, 3)
         #: S_R and S_M (altitudes, sun cosines, view cosines, view azimuths, 2, 3), flattened to (nodes, 6) rows.
-        self.in_scattering = np.stack([np.einsum("vd,jmdc->jmvc", weights_r, field).reshape(view_shape),
-                                       np.einsum("vdc,jmdc->jmvc", weights_m, field).reshape(view_shape)],
+        rayleigh = np.stack([field[..., ch] @ weights_r.T for ch in range(3)], axis=-1)       # (J, M, V, 3)
+        mie = np.stack([field[..., ch] @ weights_m[..., ch].T for ch in range(3)], axis=-1)
+        self.in_scattering = np.stack([rayleigh.reshape(view_shape), mie.reshape(view_shape)],
                                       axis=-2).reshape(-1, 6).astype(np.float32)   # float32: half the memory read
 
     def _rays(self, altitude_m: float) -> _Rays:
         """March the rays from the nodes at ``altitude_m`` (module docstring of the class)."""
-        atm, c = self.atm, self._dirs[:, 2]
+        atm, c = self.atm, self._marched[:, 2]
         r_ground, top = atm.planet_radius, atm.atmosphere_height
         r0 = r_ground + altitude_m
         t_top = -r0 * c + np.sqrt(np.maximum(r0 * r0 * (c * c - 1.0) + (r_ground + top) ** 2, 0.0))
@@ -426,18 +500,21 @@ class MultipleScatteringTable:
         radius = np.sqrt(np.maximum(r0 * r0 + 2.0 * r0 * c[:, None] * t + t * t, 0.0))
         h = np.maximum(radius - r_ground, 0.0)
         n_r, n_m = np.exp(-h / atm.rayleigh_scale_height)[..., None], np.exp(-h / atm.mie_scale_height)[..., None]
-        tau_step = local_extinction(atm, n_r, n_m, h) * dt
+        forward = forward_fraction(atm)                # delta-Eddington: the haze's forward peak does not attenuate
+        tau_step = (local_extinction(atm, n_r, n_m, h) - forward * atm.mie_scattering * n_m) * dt
         tau_through = np.cumsum(tau_step, axis=1)
-        seen = np.exp(-(tau_through - 0.5 * tau_step)) * dt                         # T dt to each step's midpoint
+        seen = np.exp(-(tau_through - 0.5 * tau_step)) * dt                         # T' dt to each step's midpoint
+        turning = atm.rayleigh_scattering * n_r + (1.0 - forward) * atm.mie_scattering * n_m   # sigma_s'
         r_end = np.sqrt(np.maximum(r0 * r0 + 2.0 * r0 * c * length + length * length, 0.0))
         # sun zenith cosine along the rays, for every sun position: (x . sun) / |x|, x = (0, 0, r0) + t w
         mu_s = self._mu_s
         return _Rays(altitude_m=h, sun_cosine=(r0 * mu_s[:, None, None] + t[None] * self._along[..., None]) / radius,
-                     step_scattering=seen * (atm.rayleigh_scattering * n_r + atm.mie_scattering * n_m),
+                     step_scattering=seen * turning,
                      step_rayleigh=seen * atm.rayleigh_scattering * n_r, step_mie=seen * atm.mie_scattering * n_m,
                      radius_m=radius,
                      to_ground=np.where(hits[:, None], np.exp(-tau_through[:, -1]) * self._albedo, 0.0),
-                     ground_radius_m=r_end, ground_sun_cosine=(r0 * mu_s[:, None] + length * self._along) / r_end)
+                     ground_radius_m=r_end, ground_sun_cosine=(r0 * mu_s[:, None] + length * self._along) / r_end,
+                     view_up=(t + r0 * c[:, None]) / np.maximum(radius, 1.0))
 
     def _indices(self, altitude_m: ArrayLike, cos_zenith: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Fractional node indices (altitude row, sun-cosine column) of points, as :meth:`__call__` reads them."""
@@ -446,25 +523,42 @@ class MultipleScatteringTable:
         mu = np.clip(np.asarray(cos_zenith, dtype=np.float64), -1.0, 1.0)
         return i, (np.sign(mu) * np.sqrt(np.abs(mu)) + 1.0) * 0.5 * (self.n_mu - 1)
 
-    def _matrix_rows(self, altitude_m: np.ndarray, cos_zenith: np.ndarray, weight: np.ndarray) -> np.ndarray:
-        """A's rows (3, M, nodes) of one altitude's M nodes for points of shape (M, ...) with weights (..., 3): each
-        point adds its weight times the bilinear weight of each of the four nodes around it (the matrix form of
-        J(point) read off the nodes)."""
-        i, k = self._indices(altitude_m, cos_zenith)
+    def _emission(self, rays: _Rays) -> np.ndarray:
+        """(3, M, D, S, 3): what each step of the rays sends back to their node per unit J, H_up and H_sun at the
+        step: T' dt times sigma_s' (the delta-Eddington scattering, :func:`forward_fraction`), and times
+        3 (g - f) beta_M n_M (w . up_p) and 3 (g - f) beta_M n_M (w . sun_p), where up_p and sun_p are the local
+        zenith and the horizontal toward the sun at the step. A medium that scatters with mean cosine g' turns a
+        field J + 3 H . w into J + 3 g' H . w; sigma_s' g' = (1 - f) beta_M g' = (g - f) beta_M for the haze, and
+        Rayleigh's mean cosine is 0."""
+        up = rays.view_up[None]                                                     # (1, D, S)
+        mu = rays.sun_cosine                                                        # (M, D, S)
+        across = np.sqrt(np.maximum(1.0 - mu * mu, 0.0))
+        toward_sun = np.where(across > 1e-6, (self._along[..., None] - mu * up) / np.maximum(across, 1e-6), 0.0)
+        g = np.broadcast_to(np.asarray(self.atm.mie_g, dtype=np.float64), (3,))
+        moment = 3.0 * (g - forward_fraction(self.atm)) * rays.step_mie            # (D, S, 3)
+        shape = mu.shape + (3,)
+        return np.stack([np.broadcast_to(rays.step_scattering[None], shape),
+                         np.broadcast_to(moment[None] * up[..., None], shape), moment[None] * toward_sun[..., None]])
+
+    def _matrix_rows(self, altitude_m: np.ndarray, cos_zenith: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """Rows of A for one altitude's M nodes, (..., 3 channels, M, nodes), from points of shape (M, ...) (the
+        altitude broadcast to it) with weights (..., M, ..., 3): each point adds its weight times the bilinear weight
+        of each of the four nodes around it (the matrix form of J(point) read off the nodes), one bincount per
+        leading index and channel."""
+        i, k = self._indices(np.broadcast_to(altitude_m, np.shape(cos_zenith)), cos_zenith)
         i0 = np.minimum(np.floor(i).astype(int), self.n_alt - 2)
         k0 = np.minimum(np.floor(k).astype(int), self.n_mu - 2)
         fi, fk = i - i0, k - k0
         n_rows, n_nodes = i.shape[0], self.n_alt * self.n_mu
         row = np.arange(n_rows).reshape((-1,) + (1,) * (i.ndim - 1)) * n_nodes
-        weight = np.broadcast_to(weight, i.shape + (3,))
-        block = np.zeros((3, n_rows * n_nodes))
-        for di, wi in ((0, 1.0 - fi), (1, fi)):
-            for dk, wk in ((0, 1.0 - fk), (1, fk)):
-                flat = (row + (i0 + di) * self.n_mu + (k0 + dk)).ravel()
-                corner = wi * wk
-                for ch in range(3):
-                    block[ch] += np.bincount(flat, weights=(corner * weight[..., ch]).ravel(), minlength=block.shape[1])
-        return block.reshape(3, n_rows, n_nodes)
+        flat = np.concatenate([(row + (i0 + di) * self.n_mu + (k0 + dk)).ravel() for di in (0, 1) for dk in (0, 1)])
+        corner = np.concatenate([(wi * wk).ravel() for wi in (1.0 - fi, fi) for wk in (1.0 - fk, fk)])
+        lead = weights.shape[:-1 - i.ndim]
+        columns = np.moveaxis(np.broadcast_to(weights, lead + i.shape + (3,)), -1, len(lead))
+        columns = columns.reshape(-1, i.size)                                       # (lead x 3, points)
+        result = np.stack([np.bincount(flat, weights=corner * np.tile(column, 4), minlength=n_rows * n_nodes)
+                           for column in columns])
+        return result.reshape(lead + (3, n_rows, n_nodes))
 
     def __call__(self, altitude_m: ArrayLike, cos_zenith: ArrayLike) -> np.ndarray:
         """Psi_ms at altitude ``altitude_m`` (m, clamped to the atmosphere) and sun zenith cosine, (..., 3):

@@ -81,7 +81,7 @@ DAY_ERROR_PCT = {
     (Level.FAST, False): (9, 83),
     (Level.BALANCED, False): (5, 62),
     (Level.PRECISE, False): (5, 62),
-    (Level.PRECISE, True): (1, 3),
+    (Level.PRECISE, True): (1, 2),
 }
 #: Render time against Blender's own Sky Texture alone (its sky and no aerial perspective), the sample valley in
 #: Cycles: docs/quality.md "Cost" (``tools/bench_quality_cost.py --engines cycles --repeats 5 --decompose``,

@@ -293,7 +293,8 @@ def test_multiple_scattering_at_the_blue_hour_is_not_an_interpolation_artefact()
     # the sun cosines linear (32 of them) the table interpolated across that fall: L_in 1.53x the complete
     # reference on average (Hillaire's isotropic table). Crowded at mu_s = 0 it agrees with a 256-sample table:
     # measured 0.81 then, 1.20 with the orders carried between points and the view-dependent last scattering
-    # (per ray 0.88-1.38x against 24000 paths: the isotropic third and higher orders, docs/quality.md).
+    # (per ray 0.88-1.38x against 24000 paths: the isotropic third and higher orders, docs/quality.md), 0.95 with
+    # 800 paths of seed 13 later, 1.02 since the table carries the light's first moment (December 2026).
     from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import bake_tile
     from atmos_addon.physics.precise import evaluate as evaluate_precise
@@ -338,12 +339,21 @@ def test_the_view_dependent_multiple_scattering_averages_to_the_mean_radiance(pr
         np.testing.assert_allclose(s_m.mean(axis=0), ms(altitude, cos_sun), rtol=0.02)
 
 
-@pytest.mark.parametrize("name, low, high", [("overcast_low_sun", 0.55, 1.1), ("sunset_toward", 0.88, 1.08),
-                                             ("sunset_away", 0.88, 1.08)])
+@pytest.mark.parametrize("name, low, high", [("overcast_low_sun", 0.9, 1.15), ("sunset_toward", 0.96, 1.05),
+                                             ("sunset_away", 0.95, 1.08)])
 def test_multiple_scattering_at_a_low_sun_follows_the_complete_reference(name, low, high):
-    # Mean L_in / the Monte Carlo reference (800 paths) at a 1 deg sun. Measured: overcast 0.77, clear toward the
-    # sun 0.95, away 0.95. Hillaire's table (isotropic, the higher orders of a uniformly lit medium) gave about
-    # 0.2 in the overcast (the light that diffuses down from the lit haze above), 0.8 toward and 0.72 away.
+    # Mean L_in / the Monte Carlo reference (800 paths) at a 1 deg sun. Measured: overcast 1.04, clear toward the
+    # sun 0.99, away 1.02. With the higher orders an isotropic mean radiance (no first moment, no delta-Eddington
+    # split; until December 2026) 0.75, 0.95 and 0.96: the light of the thick forward-scattering haze that keeps
+    # travelling away from a low sun was scattered every way at the third order. Hillaire's table (isotropic, the
+    # higher orders of a uniformly lit medium) gave about 0.2 in the overcast, 0.8 toward and 0.72 away.
+    ratio = float(np.mean(_low_sun_ratios(name)))
+    assert low < ratio < high, ratio
+
+
+def _low_sun_ratios(name: str) -> np.ndarray:
+    """Precise's L_in with multiple scattering over the Monte Carlo reference (800 paths, seed 14), per bench ray and
+    channel of the case ``name``."""
     from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import evaluate as evaluate_precise
     from atmos_addon.physics.quality import COMPLETE_REFERENCE_GROUND_ALBEDO, bench_case
@@ -354,8 +364,24 @@ def test_multiple_scattering_at_a_low_sun_follows_the_complete_reference(name, l
                                    ground_albedo=COMPLETE_REFERENCE_GROUND_ALBEDO, paths=800, seed=14)
     tile = bake_tile(case.atmosphere, case.camera_altitude_m, math.radians(case.sun_elevation_deg))
     _, l_in = evaluate_precise(tile, case.view_dirs, case.sun_dir, case.distances_m, case.atmosphere, np.float64)
-    ratio = float(np.mean(l_in / reference))
-    assert low < ratio < high, ratio
+    return l_in / reference
+
+
+def test_the_multiply_scattered_light_of_a_martian_sunset_keeps_its_direction():
+    # Mars' dust scatters forward (g 0.63-0.78) and many orders carry its light at a 2 deg sun: the reference's haze is
+    # several times brighter toward the sun than away. Mean L_in / the Monte Carlo reference, toward and away
+    # separately: measured 1.12 and 1.06 with the table's first moment and delta-Eddington split; with the higher
+    # orders isotropic 0.59 and 1.51 (their mean, 1.05, hid it), with the first moment of the whole peaked phase
+    # function (no delta split) about 0.8 and 0.3-0.9.
+    from atmos_addon.physics.quality import bench_case
+
+    case = bench_case("mars_sunset")
+    ratios = _low_sun_ratios("mars_sunset")
+    toward = case.view_dirs @ case.sun_dir > 0.0
+    assert toward.any() and (~toward).any()
+    for side, label in ((toward, "toward"), (~toward, "away")):
+        ratio = float(np.mean(ratios[side]))
+        assert 0.85 < ratio < 1.25, (label, ratio)
 
 
 def test_bake_tile_keeps_its_last_tiles_read_only_and_integrate_tile_bakes_the_same() -> None:
@@ -380,10 +406,11 @@ def test_the_sky_view_lights_as_the_precise_sky(preset):
     """The sky view Cycles' non-camera rays read (``lighting_from_tile``: the tile's sky tabulated by view zenith and
     azimuth from the sun, sampled bilinearly) against the Precise sky it tabulates (``sky_from_tile``, float64): the
     irradiance it gives a surface facing up and sideways (toward, across and away from the sun) within 1.5 %, facing
-    down within 6 %, a typical direction's radiance within 0.5 %, the lit ground included. Below the horizon the
+    down within 7.5 %, a typical direction's radiance within 0.5 %, the lit ground included. Below the horizon the
     in-scattering of a ground camera's short rays grows like 1 / |v_z| between rows, and the bilinear chord lies
     above it: 5 % too much light 0.5-2 deg below the horizon (measured), which only shows where the ground is unlit
-    (the sun below the horizon: a down-facing surface under a twilight sky)."""
+    (the sun below the horizon: a down-facing surface under a twilight sky): measured 2.9-6.8 % on Mars at a sun 4
+    deg down (the blue the most) since the multiple-scattering table carries the light's first moment, 5 % before."""
     atm = EARTH if preset == "clear" else load(preset).atmosphere
     rng = np.random.default_rng(3)
     views = rng.normal(size=(60_000, 3))
@@ -401,7 +428,7 @@ def test_the_sky_view_lights_as_the_precise_sky(preset):
                        tuple(-sun * [1, 1, 0] / math.cos(e))):
             cosine = np.maximum(views @ np.asarray(normal, dtype=float), 0.0)[:, None]
             ratio = (table * cosine).mean(axis=0) / (exact * cosine).mean(axis=0)
-            tolerance = 0.06 if normal == (0, 0, -1) else 0.015
+            tolerance = 0.075 if normal == (0, 0, -1) else 0.015
             assert np.all(np.abs(ratio - 1.0) < tolerance), f"{label} normal {normal}: irradiance ratio {ratio}"
         off_sun = np.degrees(np.arccos(np.clip(views @ sun, -1.0, 1.0))) > 3.0
         relative = np.abs(table - exact)[off_sun] / np.maximum(exact[off_sun], 1e-30)
@@ -482,7 +509,7 @@ def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
     in luminance, the clear preset, ground albedo 0.3, 4 altitudes x 7 suns x 64 views: measured 0.96-1.03 at
     suns 4-8 deg down, within 1 % from 2 deg down up). Linearly, the same 33 nodes made it up to 1.31x too bright
     at 4-8 deg down (the twilight sky away from the sun +27 % and +50 % against the spectral reference at -4 and
-    -6 deg)."""
+    -6 deg); 1.19x since the table carries the light's first moment (December 2026)."""
     from atmos_addon.physics import precise
 
     clear = load("clear").atmosphere
@@ -505,4 +532,4 @@ def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
     assert np.all(np.abs(log_linear - 1.0) < 0.06), (log_linear.min(), log_linear.max())
     assert np.all(np.abs(log_linear[:, 3:] - 1.0) < 0.015)   # from 2 deg down to the day
     monkeypatch.setattr(precise, "_log_linear", lambda low, high, fraction: low + fraction * (high - low))
-    assert ratio()[:, :3].max() > 1.2   # the straight line, which the test would catch
+    assert ratio()[:, :3].max() > 1.12   # the straight line, which the test would catch
