@@ -293,9 +293,11 @@ def forward_fraction(atm: Atmosphere) -> np.ndarray:
     at all (delta-Eddington: Joseph, Wiscombe & Weinman 1976, "The Delta-Eddington Approximation for Radiative Flux
     Transfer"). Henyey-Greenstein's forward peak is cut off as a delta function, f of the scattering: that light goes
     on in its direction as if it had not scattered (the haze's extinction less f beta_M), and the rest scatters with
-    mean cosine g' = (g - f) / (1 - f), a field the first moment describes far better than the peaked whole."""
+    mean cosine g' = (g - f) / (1 - f), a field the first moment describes far better than the peaked whole. A haze
+    that scatters backward (g <= 0) has no forward peak to cut: f = 0 (g^2 there would give |g'| > 1: g -0.9 made
+    the table negative and its higher orders darker than the first)."""
     g = np.broadcast_to(np.asarray(atm.mie_g, dtype=np.float64), (3,))
-    return g * g
+    return np.maximum(g, 0.0) ** 2
 
 
 #: Unknowns per node of the multiple-scattering solve: the mean radiance J and its first moment H (up, sun).
@@ -453,10 +455,11 @@ class MultipleScatteringTable:
         self.single = first
         sky_irradiance = sky_once + np.einsum("cgn,nc->gc", sky_more, solved)        # E at the ground, (M_g, 3)
         # Between sun-cosine nodes J is read log-linearly (it falls by orders of magnitude across the terminator) and
-        # H as J times the interpolated H / J, which changes slowly.
-        anisotropy = np.where(moments[0][:, :, None] > 0.0, self.first_moment
-                              / np.where(moments[0] > 0.0, moments[0], 1.0)[:, :, None], 0.0).reshape(
-                                  n_altitudes, n_cosines, 6)
+        # H as J times the interpolated H / J, which changes slowly; |H| <= J for any radiance field that is nowhere
+        # negative, which bounds the ratio where J is the solve's rounding (deep in the planet's shadow).
+        anisotropy = np.clip(np.where(moments[0][:, :, None] > 0.0, self.first_moment
+                                      / np.where(moments[0] > 0.0, moments[0], 1.0)[:, :, None], 0.0),
+                             -1.0, 1.0).reshape(n_altitudes, n_cosines, 6)
         field = once
         for j, rays in enumerate(all_rays):                                         # + the higher orders by direction
             emitted = self._emission(rays)
@@ -481,9 +484,11 @@ class MultipleScatteringTable:
         view_shape = (n_altitudes, n_cosines, n_view_cosines, n_view_azimuths, 3)
         rayleigh = np.stack([field[..., ch] @ weights_r.T for ch in range(3)], axis=-1)       # (J, M, V, 3)
         mie = np.stack([field[..., ch] @ weights_m[..., ch].T for ch in range(3)], axis=-1)
-        #: S_R and S_M (altitudes, sun cosines, view cosines, view azimuths, 2, 3), flattened to (nodes, 6) rows.
-        self.in_scattering = np.stack([rayleigh.reshape(view_shape), mie.reshape(view_shape)],
-                                      axis=-2).reshape(-1, 6).astype(np.float32)   # float32: half the memory read
+        #: S_R and S_M (altitudes, sun cosines, view cosines, view azimuths, 2, 3), flattened to (nodes, 6) rows;
+        #: float32, half the memory read. Not below 0: a P1 field can dip below it behind a peaked phase function,
+        #: by under 1e-5 of the table's largest value (measured: a backward haze g -0.999, Mars' dust 30x at g 0.99).
+        self.in_scattering = np.maximum(np.stack([rayleigh.reshape(view_shape), mie.reshape(view_shape)],
+                                                 axis=-2).reshape(-1, 6), 0.0).astype(np.float32)
         # Each row beside the same node at the next sun cosine (zeros past the last, which no lookup reaches), so
         # :meth:`scattered` reads both sun-cosine nodes of a corner in one gather.
         next_cosine = n_view_cosines * n_view_azimuths
