@@ -289,13 +289,13 @@ class _Rays:
 
 
 def forward_fraction(atm: Atmosphere) -> np.ndarray:
-    """f = g^2 (3,): the share of the haze's scattering that the multiple-scattering table treats as not scattered
-    at all (delta-Eddington: Joseph, Wiscombe & Weinman 1976, "The Delta-Eddington Approximation for Radiative Flux
-    Transfer"). Henyey-Greenstein's forward peak is cut off as a delta function, f of the scattering: that light goes
-    on in its direction as if it had not scattered (the haze's extinction less f beta_M), and the rest scatters with
-    mean cosine g' = (g - f) / (1 - f), a field the first moment describes far better than the peaked whole. A haze
-    that scatters backward (g <= 0) has no forward peak to cut: f = 0 (g^2 there would give |g'| > 1: g -0.9 made
-    the table negative and its higher orders darker than the first)."""
+    """f = max(g, 0)^2 (3,): the share of the haze's scattering that the multiple-scattering table treats as not
+    scattered at all (delta-Eddington: Joseph, Wiscombe & Weinman 1976, "The Delta-Eddington Approximation for
+    Radiative Flux Transfer"). Henyey-Greenstein's forward peak is cut off as a delta function, f of the scattering:
+    that light goes on in its direction as if it had not scattered (the haze's extinction less f beta_M), and the
+    rest scatters with mean cosine g' = (g - f) / (1 - f), a field the first moment describes far better than the
+    peaked whole. A haze that scatters backward (g <= 0) has no forward peak to cut: f = 0 (g^2 there would give
+    |g'| > 1: g -0.9 made the table negative and its higher orders darker than the first)."""
     g = np.broadcast_to(np.asarray(atm.mie_g, dtype=np.float64), (3,))
     return np.maximum(g, 0.0) ** 2
 
@@ -319,9 +319,10 @@ class MultipleScatteringTable:
     distance t, where the sun has zenith cosine mu_s(p), up_p and sun_p its local zenith and horizontal toward the sun.
 
     The haze's Henyey-Greenstein phase function is split the delta-Eddington way (:func:`forward_fraction`): f = g^2
-    of its scattering is a delta function forward (light that goes on as if not scattered) and the rest scatters with
-    mean cosine g' = (g - f) / (1 - f). So along the rays T' is the transmittance with the haze's extinction less
-    f beta_M n_M, sigma_s' = beta_R n_R + (1 - f) beta_M n_M the scattering that turns light:
+    of its scattering (g > 0; none for a haze scattering backward) is a delta function forward (light that goes on as
+    if not scattered) and the rest scatters with mean cosine g' = (g - f) / (1 - f). So along the rays T' is the
+    transmittance with the haze's extinction less f beta_M n_M, sigma_s' = beta_R n_R + (1 - f) beta_M n_M the
+    scattering that turns light:
 
         L_1(x, w) = integral T' (beta_R n_R Phi_R + beta_M n_M Phi_HG)(w . sun) T_sun dt + T'_g T_sun mu_s,g albedo / pi
 
