@@ -296,8 +296,12 @@ def forward_fraction(atm: Atmosphere) -> np.ndarray:
     rest scatters with mean cosine g' = (g - f) / (1 - f), a field the first moment describes far better than the
     peaked whole. A haze that scatters backward (g <= 0) has no forward peak to cut: f = 0 (g^2 there would give
     |g'| > 1: g -0.9 made the table negative and its higher orders darker than the first)."""
-    g = np.broadcast_to(np.asarray(atm.mie_g, dtype=np.float64), (3,))
-    return np.maximum(g, 0.0) ** 2
+    return np.maximum(_mie_g(atm), 0.0) ** 2
+
+
+def _mie_g(atm: Atmosphere) -> np.ndarray:
+    """The haze's Henyey-Greenstein g per channel (3,)."""
+    return np.broadcast_to(np.asarray(atm.mie_g, dtype=np.float64), (3,))
 
 
 #: Unknowns per node of the multiple-scattering solve: the mean radiance J and its first moment H (up, sun).
@@ -436,8 +440,9 @@ class MultipleScatteringTable:
         # The ground reflects the sky's light as a Lambertian surface: radiance albedo / pi E, E = E_1 + E_B X the
         # irradiance from the upper hemisphere (not J at the ground, whose mean over every direction would count the
         # ground's own light as lighting it).
-        first = np.einsum("jmdc,d->jmc", once, share[:, 0])                          # J_1
-        source = np.concatenate([np.einsum("jmdc,d->jmc", once, share[:, 0] * project[a]).reshape(n_nodes, 3)
+        once_moments = np.einsum("jmdc,ad->ajmc", once, project * share[:, 0])     # J_1, H_1 (3, J, M, 3)
+        first = once_moments[0]                                                     # J_1
+        source = np.concatenate([once_moments[a].reshape(n_nodes, 3)
                                  + np.concatenate([np.einsum("cmg,gc->mc", rows[a], sky_once) for rows in ground_rows])
                                  for a in range(_MOMENTS)])                          # (3N, 3): J_1, H_1
         for a in range(_MOMENTS):
@@ -458,8 +463,8 @@ class MultipleScatteringTable:
         # Between sun-cosine nodes J is read log-linearly (it falls by orders of magnitude across the terminator) and
         # H as J times the interpolated H / J, which changes slowly; |H| <= J for any radiance field that is nowhere
         # negative, which bounds the ratio where J is the solve's rounding (deep in the planet's shadow).
-        anisotropy = np.clip(np.where(moments[0][:, :, None] > 0.0, self.first_moment
-                                      / np.where(moments[0] > 0.0, moments[0], 1.0)[:, :, None], 0.0),
+        mean = np.broadcast_to(moments[0][:, :, None], self.first_moment.shape)
+        anisotropy = np.clip(np.divide(self.first_moment, mean, out=np.zeros_like(mean), where=mean > 0.0),
                              -1.0, 1.0).reshape(n_altitudes, n_cosines, 6)
         field = once
         for j, rays in enumerate(all_rays):                                         # + the higher orders by direction
@@ -546,8 +551,7 @@ class MultipleScatteringTable:
         mu = rays.sun_cosine                                                        # (M, D, S)
         across = np.sqrt(np.maximum(1.0 - mu * mu, 0.0))
         toward_sun = np.where(across > 1e-6, (self._along[..., None] - mu * up) / np.maximum(across, 1e-6), 0.0)
-        g = np.broadcast_to(np.asarray(self.atm.mie_g, dtype=np.float64), (3,))
-        moment = 3.0 * (g - forward_fraction(self.atm)) * rays.step_mie            # (D, S, 3)
+        moment = 3.0 * (_mie_g(self.atm) - forward_fraction(self.atm)) * rays.step_mie   # (D, S, 3)
         shape = mu.shape + (3,)
         return np.stack([np.broadcast_to(rays.step_scattering[None], shape),
                          np.broadcast_to(moment[None] * up[..., None], shape), moment[None] * toward_sun[..., None]])
@@ -558,9 +562,7 @@ class MultipleScatteringTable:
         of each of the four nodes around it (the matrix form of J(point) read off the nodes), one bincount per
         leading index and channel."""
         i, k = self._indices(np.broadcast_to(altitude_m, np.shape(cos_zenith)), cos_zenith)
-        i0 = np.minimum(np.floor(i).astype(int), self.n_alt - 2)
-        k0 = np.minimum(np.floor(k).astype(int), self.n_mu - 2)
-        fi, fk = i - i0, k - k0
+        i0, k0, fi, fk = _cell(self.n_alt, self.n_mu, i, k)
         n_rows, n_nodes = i.shape[0], self.n_alt * self.n_mu
         row = np.arange(n_rows).reshape((-1,) + (1,) * (i.ndim - 1)) * n_nodes
         flat = np.concatenate([(row + (i0 + di) * self.n_mu + (k0 + dk)).ravel() for di in (0, 1) for dk in (0, 1)])
