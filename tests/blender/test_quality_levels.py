@@ -140,8 +140,8 @@ def test_in_render_mode_builds_fast_segments_and_says_so():
 def test_an_animated_sun_bakes_key_tiles_that_each_frame_blends_and_a_pan_bakes_one():
     """A camera that pans at one altitude: one tile, no keys, no blend. A sun setting 20 -> 10 deg over 60 frames
     (keys added after enabling: the depsgraph handler re-bakes): a key tile every 2 deg, the groups rebuilt to blend
-    two keys, every frame's key and weight at its own sun elevation. The sun's animation removed: one tile again,
-    the groups without the blend."""
+    two keys, every frame's key and weight at its own sun elevation, in the same image, grown in place. The sun's
+    animation removed: one tile again, the groups without the blend."""
     from atmos_addon.blender import facts, scene_reading
     from atmos_addon.nodes import precise as precise_nodes
     from atmos_addon.nodes import stamps
@@ -163,6 +163,7 @@ def test_an_animated_sun_bakes_key_tiles_that_each_frame_blends_and_a_pan_bakes_
                 for kind in (stamps.AERIAL, stamps.SKY)}
 
     assert blends() == {False}
+    first_image = bpy.data.images[precise_nodes.IMAGE_NAME]
     keyed = {c.data_path for c in scene.animation_data.action.fcurves} if scene.animation_data else set()
     assert not any(PRECISE_TILE in path for path in keyed), "nothing changes over the range: nothing keyed"
 
@@ -175,6 +176,10 @@ def test_an_animated_sun_bakes_key_tiles_that_each_frame_blends_and_a_pan_bakes_
     assert tiles in (6, 7), tiles                            # 20, 18, ..., 10 deg (and the last frame's rest)
     image = bpy.data.images[precise_nodes.IMAGE_NAME]
     assert image.size[1] == tiles * precise_nodes.ALTITUDES
+    # resized in place: the groups' image nodes still point at it (re-pointing them re-evaluates every material)
+    assert image == first_image
+    taps = [node for node in bpy.data.node_groups[GROUP].nodes if node.bl_idname == "ShaderNodeTexImage"]
+    assert taps and all(node.image == image for node in taps)
     assert blends() == {True} and facts.plan_of(scene).blend
     for frame in (1, 17, 30, 44, 60):
         scene.frame_set(frame)

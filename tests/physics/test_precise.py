@@ -79,6 +79,61 @@ def test_the_first_moment_stays_physical_at_extreme_hazes(preset, scale, g):
         assert np.all(np.isfinite(quantity)) and np.all(quantity >= 0.0)
 
 
+def test_the_scattering_orders_are_solved_as_the_direct_solve_would():
+    """GMRES on (I - A) x = source (:func:`precise.solve_orders`) against LU: a transport like the presets' (spectral
+    radius 0.6, the overcast's), one so close to conservative that GMRES stops at its step limit and hands over to the
+    direct solve, and a dark source. Then a whole table, the overcast preset's, against one solved directly."""
+    from atmos_addon.physics import precise
+
+    rng = np.random.default_rng(7)
+    n = 600
+    base = rng.random((n, n))
+    source = rng.random(n)
+    for radius, limit in ((0.6, 60), (0.999, 5)):
+        transport = base * (radius / np.abs(np.linalg.eigvals(base)).max())
+        want = np.linalg.solve(np.eye(n) - transport, source)
+        got = precise.solve_orders(transport, source, max_iterations=limit)
+        assert np.abs(got - want).max() <= 1e-8 * np.abs(want).max(), radius
+    np.testing.assert_array_equal(precise.solve_orders(base * 0.001, np.zeros(n)), np.zeros(n))
+
+    atm = load("overcast").atmosphere
+    sun = SunTransmittanceTable(atm)
+    iterative = MultipleScatteringTable(atm, sun)
+    direct = precise.solve_orders
+    try:
+        precise.solve_orders = lambda transport, rhs: np.linalg.solve(np.eye(rhs.size) - transport, rhs)
+        reference = MultipleScatteringTable(atm, sun)
+    finally:
+        precise.solve_orders = direct
+    assert np.abs(iterative.psi - reference.psi).max() <= 1e-8 * reference.psi.max()
+    assert np.abs(iterative.first_moment - reference.first_moment).max() <= 1e-8 * reference.psi.max()
+
+
+def test_the_sun_tables_share_their_geometry_not_their_coefficients():
+    """An edit of the haze, its colour or the ozone's amount reuses the sun table's Chapman and ozone grids (they
+    depend on the planet, the top and the scale heights only) and transmits as a table built from nothing; a new
+    scale height builds new grids."""
+    from atmos_addon.physics import precise
+
+    clear = load("clear").atmosphere
+    edited = clear.replace(mie_scattering=clear.mie_scattering * 3.0, rayleigh_scattering=clear.rayleigh_scattering
+                           * 0.7, ozone_column_du=150.0)
+    first, second = SunTransmittanceTable(clear), SunTransmittanceTable(edited)
+    assert second.log_ch is first.log_ch and second.ozone_column is first.ozone_column
+    assert not second.log_ch.flags.writeable
+    rng = np.random.default_rng(2)
+    radius = clear.planet_radius + rng.uniform(0.0, 50_000.0, 2000)
+    cosine = rng.uniform(-0.3, 1.0, 2000)
+    shared = second(radius, cosine)
+    precise._SUN_GEOMETRY.clear()
+    fresh = SunTransmittanceTable(edited)
+    assert fresh.log_ch is not first.log_ch
+    np.testing.assert_array_equal(shared, fresh(radius, cosine))
+    assert not np.allclose(shared, first(radius, cosine))
+    higher = SunTransmittanceTable(edited.replace(mie_scale_height=edited.mie_scale_height * 2.0))
+    assert higher.log_ch is not fresh.log_ch and not np.allclose(higher.log_ch[..., 1], fresh.log_ch[..., 1])
+
+
 def _stays_above_ground(altitude, views, distances, atm):
     """Rays whose straight path from the camera stays above the spherical ground."""
     r_c = atm.planet_radius + altitude

@@ -83,12 +83,12 @@ def tile_origin(index: int, shape=DEFAULT_SHAPE) -> tuple[int, int]:
 
 
 def _ensure_image(width: int, height: int) -> bpy.types.Image:
-    """The table image at this size (a new float, non-colour image when missing or resized)."""
+    """The table image at this size (a new float, non-colour image when missing; resized in place, so the groups'
+    image nodes keep pointing at it: re-pointing them re-evaluates every material that uses the groups)."""
     name = scene_reading.groups().precise.IMAGE_NAME
     image = bpy.data.images.get(name)
     if image is not None and tuple(image.size) != (width, height):
-        bpy.data.images.remove(image)
-        image = None
+        image.scale(width, height)
     if image is None:
         image = bpy.data.images.new(name, width=width, height=height, alpha=False, float_buffer=True, is_data=True)
         image.colorspace_settings.name = "Non-Color"
