@@ -251,13 +251,14 @@ def enable_effect(scene) -> Report:
     Pixel mode (AOVs in the materials, a group in the compositor) or In-Render mode (Cycles: dome volumes, emission
     in the materials, world compensation). When the effect is on in the other mode (the setting or the render
     engine changed), that mode is removed first."""
+    if mode_mismatch(scene):
+        disable_effect(scene)
     if len(scene.view_layers):
         # The tables and Auto read the camera's matrix: objects moved by a script since the last evaluation get
         # current matrices. Before this function writes the scene's properties: a written scene re-evaluates every
-        # object (3 s of a 20000-object enable, measured), an untouched one only what the script moved.
+        # object (3 s of a 20000-object enable, measured), an untouched one only what the script moved. After the
+        # mode switch: the depsgraph handler would otherwise see the mismatch and enable again from in here.
         scene.view_layers[0].update()
-    if mode_mismatch(scene):
-        disable_effect(scene)
     with held(scene):
         migration.pin_defaults(scene.atmos)   # a file saved from now on keeps these whatever later defaults are
     _set_enabled(scene, True)
