@@ -65,9 +65,12 @@ sun-strength unit. :func:`evaluate` reproduces the shader's float32 sampling ste
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import functools
 import math
+import os
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -326,6 +329,22 @@ def _mie_g(atm: Atmosphere) -> np.ndarray:
     return np.broadcast_to(np.asarray(atm.mie_g, dtype=np.float64), (3,))
 
 
+#: Threads that build the rows of a table's altitudes at once (numpy's array loops release the GIL): the machine's
+#: cores, at most 4 (each holds about 40 MB of temporaries).
+WORKERS = max(1, min(4, os.cpu_count() or 1))
+
+
+def in_parallel(work: Callable[[int], None], count: int) -> None:
+    """work(0), ..., work(count - 1) on :data:`WORKERS` threads; each call must write only its own slices. The
+    results are the same to the bit as in one thread; a call's exception is raised here."""
+    if WORKERS == 1 or count < 2:
+        for index in range(count):
+            work(index)
+        return
+    with concurrent.futures.ThreadPoolExecutor(WORKERS) as pool:
+        list(pool.map(work, range(count)))
+
+
 #: Unknowns per node of the multiple-scattering solve: the mean radiance J and its first moment H (up, sun).
 _MOMENTS = 3
 
@@ -427,10 +446,12 @@ class MultipleScatteringTable:
       a peaked phase function goes negative behind it) and left the overcast 0.85-0.95x; the delta cut alone
       (f = g, an isotropic rest) 1.2-1.6x too bright.
 
-    The table costs about 4 s to build (2.7 s with J alone, which marched every direction; the light is symmetric
-    about the sun's plane, so only the half with w_y > 0 is marched now and the other half mirrored: the same
-    numbers for half the work). The directions, steps and view grid were chosen by the bench (more directions
-    change no day case by over 0.5 % and the low suns by a few %).
+    The directions, steps and view grid were chosen by the bench (more directions change no day case by over 0.5 %
+    and the low suns by a few %). Cost, on this project's 2-core machine: 1.5-1.9 s (December 2026). The light is
+    symmetric about the sun's plane, so only the half of the directions with w_y > 0 is marched and the other half
+    mirrored (the same numbers for half the work: 4 s -> 2.7 s with J alone); the orders are summed by GMRES
+    (:func:`solve_orders`, 0.02-0.03 s a channel where LU took 0.35 s: 4.0 -> 2.4 s); the altitudes' rows are built
+    on :data:`WORKERS` threads (2.4-2.6 -> 1.5-1.9 s on 2 cores; the same numbers to the bit).
     """
 
     def __init__(self, atm: Atmosphere, sun_table: SunTransmittanceTable, ground_albedo=DEFAULT_GROUND_ALBEDO,
@@ -467,10 +488,13 @@ class MultipleScatteringTable:
         project = np.stack([np.ones(n_dirs), self._marched[:, 2], self._marched[:, 0]])   # (3, D)
         once = np.zeros((n_altitudes, n_cosines, n_dirs, 3))                        # L_1(x, w)
         transport = np.zeros((3, _MOMENTS * n_nodes, _MOMENTS * n_nodes))          # A per channel
-        ground_rows = []                       # per altitude: the ground points' weights on the ground's sun cosines
         upward = 2.0 * np.maximum(self._marched[:, 2], 0.0) * solid_angle[marched]  # (D,): cos w dOmega, sky only
         all_rays = [self._rays(float(altitude)) for altitude in altitudes]
-        for j, rays in enumerate(all_rays):
+        ground_rows = [None] * n_altitudes     # per altitude: the ground points' weights on the ground's sun cosines
+        sky = {}
+
+        def march(j: int) -> None:             # the rows of altitude j's nodes: each call writes its own slices
+            rays = all_rays[j]
             t_sun = sun_table(np.broadcast_to(rays.radius_m, rays.sun_cosine.shape), rays.sun_cosine)  # (M, D, S, 3)
             light = np.sum(t_sun * (rays.step_rayleigh[None] * phase_r + rays.step_mie[None] * phase_m), axis=2)
             lit_ground = np.maximum(rays.ground_sun_cosine, 0.0)[..., None] * sun_table(
@@ -485,12 +509,15 @@ class MultipleScatteringTable:
                     list(blocks[a]), axis=-1)
             ground = self._matrix_rows(np.zeros(()), rays.ground_sun_cosine,
                                        rays.to_ground[None, None] * (project * share[:, 0] / np.pi)[:, None, :, None])
-            ground_rows.append(ground[..., :n_cosines])                             # (3 out, 3 ch, M, M_g)
+            ground_rows[j] = ground[..., :n_cosines]                                # (3 out, 3 ch, M, M_g)
             if j == 0:   # the ground's irradiance from the sky: E_1 of the once-scattered light, and E_B of the rest
-                sky_once = np.einsum("mdc,d->mc", light, upward)                    # (M_g, 3)
-                sky_more = np.concatenate(list(self._matrix_rows(
+                sky["once"] = np.einsum("mdc,d->mc", light, upward)                 # (M_g, 3)
+                sky["more"] = np.concatenate(list(self._matrix_rows(
                     rays.altitude_m, rays.sun_cosine, emitted * upward[None, None, :, None, None])),
                     axis=-1)                                                        # (3, M_g, 3N)
+
+        in_parallel(march, n_altitudes)
+        sky_once, sky_more = sky["once"], sky["more"]
         # The ground reflects the sky's light as a Lambertian surface: radiance albedo / pi E, E = E_1 + E_B X the
         # irradiance from the upper hemisphere (not J at the ground, whose mean over every direction would count the
         # ground's own light as lighting it).
@@ -503,7 +530,7 @@ class MultipleScatteringTable:
             transport[:, a * n_nodes:(a + 1) * n_nodes] += np.concatenate(
                 [rows[a] for rows in ground_rows], axis=1) @ sky_more
         solved = np.stack([solve_orders(transport[ch], source[:, ch]) for ch in range(3)], axis=-1)
-        del transport
+        transport = None                           # its 240 MB freed before the field is gathered
         moments = solved.reshape(_MOMENTS, n_altitudes, n_cosines, 3)
         #: Psi_ms (altitudes, sun cosines, 3): the mean radiance of light scattered at least once, 1/sr per unit E_top.
         self.psi = np.maximum(moments[0], 0.0)
@@ -520,7 +547,9 @@ class MultipleScatteringTable:
         anisotropy = np.clip(np.divide(self.first_moment, mean, out=np.zeros_like(mean), where=mean > 0.0),
                              -1.0, 1.0).reshape(n_altitudes, n_cosines, 6)
         field = once
-        for j, rays in enumerate(all_rays):                                         # + the higher orders by direction
+
+        def gather(j: int) -> None:            # + the higher orders by direction, at altitude j's nodes
+            rays = all_rays[j]
             emitted = self._emission(rays)
             altitude_m = np.broadcast_to(rays.altitude_m, rays.sun_cosine.shape)
             i, k = self._indices(altitude_m, rays.sun_cosine)
@@ -530,6 +559,8 @@ class MultipleScatteringTable:
             _, k = self._indices(0.0, rays.ground_sun_cosine)
             lit = np.stack([np.interp(k, np.arange(n_cosines), sky_irradiance[:, ch]) for ch in range(3)], axis=-1)
             field[j] += rays.to_ground[None] / np.pi * lit
+
+        in_parallel(gather, n_altitudes)
         view_z = np.linspace(-1.0, 1.0, n_view_cosines)[:, None]
         view_a = np.linspace(0.0, np.pi, n_view_azimuths)[None, :]
         across = np.sqrt(1.0 - view_z ** 2)
@@ -726,7 +757,8 @@ RAY_SAMPLES = 65
 
 
 #: Tiles :func:`bake_tile` keeps (about 0.85 MB each): a scene switched off and on, an undo step, a preset tried and
-#: left, or a sun moved back reuses its bake (1-3 s) instead of integrating again.
+#: left, or a sun moved back reuses its bake (0.4-0.5 s on 2 cores, plus the atmosphere's tables when they changed)
+#: instead of integrating again.
 TILE_CACHE_SIZE = 16
 
 
@@ -763,7 +795,8 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     triangle (r_c, r_p, d), sin e = (r_p^2 - r_c^2 - d^2) / (2 r_c d), clamped to a vertical ray where the
     altitude cannot be reached at that distance. The ray is integrated by Simpson's rule in w = sqrt(t / d) on
     :data:`RAY_SAMPLES` samples (dense near the camera), the optical depth to each sample by the trapezoid rule
-    on the same samples.
+    on the same samples. The rows are integrated in :data:`WORKERS` blocks on threads (0.75 -> 0.43 s a tile on
+    2 cores; the same numbers to the bit).
     """
     h_c = max(float(camera_altitude_m), 0.0)
     sun_table, ms_table = atmosphere_tables(atm, tuple(float(a) for a in ground_albedo))
@@ -771,52 +804,62 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     if not d_max > 0.0:
         raise ValueError(f"max_distance_m must be > 0; got {max_distance_m!r}")
     r_c = atm.planet_radius + h_c
-    r_p = (atm.planet_radius + row_altitudes(shape, atm))[:, None, None, None]   # (H, 1, 1, 1)
-    d = distance_columns(shape, d_max)[None, None, :, None]                       # (1, 1, D, 1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sin_e = np.where(d > 0.0, (r_p * r_p - r_c * r_c - d * d) / (2.0 * r_c * d), 0.0)
-    sin_e = np.clip(sin_e, -1.0, 1.0)
-    cos_e = np.sqrt(1.0 - sin_e * sin_e)
-    azimuth = np.linspace(0.0, np.pi, shape.azimuths)[None, :, None, None]       # (1, A, 1, 1)
-    sin_s, cos_s = math.sin(sun_elevation_rad), math.cos(sun_elevation_rad)
-    nu = cos_e * np.cos(azimuth) * cos_s + sin_e * sin_s                          # (H, A, D, 1)
-    w = np.linspace(0.0, 1.0, RAY_SAMPLES)
-    t = d * w * w                                                                 # (1, 1, D, S)
-    radius = np.sqrt(np.maximum(r_c * r_c + 2.0 * r_c * t * sin_e + t * t, 0.0))  # (H, 1, D, S)
-    h = np.maximum(radius - atm.planet_radius, 0.0)
-    n_r, n_m = np.exp(-h / atm.rayleigh_scale_height)[..., None], np.exp(-h / atm.mie_scale_height)[..., None]
-    beta_ex = local_extinction(atm, n_r, n_m, h)                                  # (H, 1, D, S, 3)
-    dt_dw = (2.0 * d * w)[..., None]                                              # (1, 1, D, S, 1)
-    dw = w[1] - w[0]
-    f = beta_ex * dt_dw
-    tau_to = np.concatenate([np.zeros_like(f[..., :1, :]),
-                             np.cumsum(0.5 * (f[..., 1:, :] + f[..., :-1, :]) * dw, axis=-2)], axis=-2)
-    view_t = np.exp(-tau_to)
-    tau = np.sum(f * _simpson_weights(RAY_SAMPLES)[:, None], axis=-2)             # (H, 1, D, 3)
-    view_t = np.where(tau_to > 0.0, np.exp(-tau_to * (tau[..., None, :] / np.maximum(tau_to[..., -1:, :], 1e-300))),
-                      view_t)                                                     # rescaled to the Simpson total
-    mu_s = (r_c * sin_s + t * nu) / np.maximum(radius, 1.0)                       # (H, A, D, S)
-    sun_t = sun_table(np.broadcast_to(radius, mu_s.shape), mu_s)                  # 0 in the planet's shadow
-    weights = (_simpson_weights(RAY_SAMPLES)[:, None] * dt_dw)                    # (1, 1, D, S, 1)
-    j_r = np.sum(weights * view_t * atm.rayleigh_scattering * n_r * sun_t, axis=-2)
-    j_m = np.sum(weights * view_t * atm.mie_scattering * n_m * sun_t, axis=-2)
-    start_r = atm.rayleigh_scattering * n_r[..., 0, :] * sun_t[..., 0, :]
-    if multiple_scattering:
-        view_z = (r_c * sin_e + t) / np.maximum(radius, 1.0)                       # local zenith cosine of the ray
-        view_x = (nu - mu_s * view_z) / np.sqrt(np.maximum(1.0 - mu_s * mu_s, 1e-12))   # ... toward the sun
-        s_r, s_m = ms_table.scattered(np.broadcast_to(h, mu_s.shape), mu_s, view_z, view_x)
-        source = atm.rayleigh_scattering * n_r * s_r + atm.mie_scattering * n_m * s_m
-        phase = phase_rayleigh(nu)                                                 # (H, A, D, 1)
-        j_r = j_r + np.sum(weights * view_t * source, axis=-2) / phase
-        start_r = start_r + source[..., 0, :] / phase
-    start_m = atm.mie_scattering * n_m[..., 0, :] * sun_t[..., 0, :]
-    local_ex = beta_ex[..., 0, :]                                                 # the camera's extinction
-    one_minus_t = -np.expm1(-tau)
-    small = one_minus_t < 1e-9      # d -> 0: J / (1 - T) -> the local scattering over the local extinction
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a_r = np.where(small, np.where(local_ex > 0.0, start_r / local_ex, 0.0), j_r / one_minus_t)
-        a_m = np.where(small, np.where(local_ex > 0.0, start_m / local_ex, 0.0), j_m / one_minus_t)
-        mean_extinction = np.where(d > 0.0, tau / d, local_ex)[:, 0]               # (H, D, 3)
+    all_rows = (atm.planet_radius + row_altitudes(shape, atm))[:, None, None, None]   # (H, 1, 1, 1)
+    mean_extinction = np.zeros((shape.altitudes, shape.distances, 3))
+    a_r = np.zeros((shape.altitudes, shape.azimuths, shape.distances, 3))
+    a_m = np.zeros_like(a_r)
+
+    def integrate(block: int) -> None:       # the rays ending at one block of target altitudes (rows)
+        rows = blocks[block]
+        r_p = all_rows[rows]
+        d = distance_columns(shape, d_max)[None, None, :, None]                       # (1, 1, D, 1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sin_e = np.where(d > 0.0, (r_p * r_p - r_c * r_c - d * d) / (2.0 * r_c * d), 0.0)
+        sin_e = np.clip(sin_e, -1.0, 1.0)
+        cos_e = np.sqrt(1.0 - sin_e * sin_e)
+        azimuth = np.linspace(0.0, np.pi, shape.azimuths)[None, :, None, None]       # (1, A, 1, 1)
+        sin_s, cos_s = math.sin(sun_elevation_rad), math.cos(sun_elevation_rad)
+        nu = cos_e * np.cos(azimuth) * cos_s + sin_e * sin_s                          # (H, A, D, 1)
+        w = np.linspace(0.0, 1.0, RAY_SAMPLES)
+        t = d * w * w                                                                 # (1, 1, D, S)
+        radius = np.sqrt(np.maximum(r_c * r_c + 2.0 * r_c * t * sin_e + t * t, 0.0))  # (H, 1, D, S)
+        h = np.maximum(radius - atm.planet_radius, 0.0)
+        n_r, n_m = np.exp(-h / atm.rayleigh_scale_height)[..., None], np.exp(-h / atm.mie_scale_height)[..., None]
+        beta_ex = local_extinction(atm, n_r, n_m, h)                                  # (H, 1, D, S, 3)
+        dt_dw = (2.0 * d * w)[..., None]                                              # (1, 1, D, S, 1)
+        dw = w[1] - w[0]
+        f = beta_ex * dt_dw
+        tau_to = np.concatenate([np.zeros_like(f[..., :1, :]),
+                                 np.cumsum(0.5 * (f[..., 1:, :] + f[..., :-1, :]) * dw, axis=-2)], axis=-2)
+        view_t = np.exp(-tau_to)
+        tau = np.sum(f * _simpson_weights(RAY_SAMPLES)[:, None], axis=-2)             # (H, 1, D, 3)
+        view_t = np.where(tau_to > 0.0, np.exp(-tau_to * (tau[..., None, :] / np.maximum(tau_to[..., -1:, :], 1e-300))),
+                          view_t)                                                     # rescaled to the Simpson total
+        mu_s = (r_c * sin_s + t * nu) / np.maximum(radius, 1.0)                       # (H, A, D, S)
+        sun_t = sun_table(np.broadcast_to(radius, mu_s.shape), mu_s)                  # 0 in the planet's shadow
+        weights = (_simpson_weights(RAY_SAMPLES)[:, None] * dt_dw)                    # (1, 1, D, S, 1)
+        j_r = np.sum(weights * view_t * atm.rayleigh_scattering * n_r * sun_t, axis=-2)
+        j_m = np.sum(weights * view_t * atm.mie_scattering * n_m * sun_t, axis=-2)
+        start_r = atm.rayleigh_scattering * n_r[..., 0, :] * sun_t[..., 0, :]
+        if multiple_scattering:
+            view_z = (r_c * sin_e + t) / np.maximum(radius, 1.0)                       # local zenith cosine of the ray
+            view_x = (nu - mu_s * view_z) / np.sqrt(np.maximum(1.0 - mu_s * mu_s, 1e-12))   # ... toward the sun
+            s_r, s_m = ms_table.scattered(np.broadcast_to(h, mu_s.shape), mu_s, view_z, view_x)
+            source = atm.rayleigh_scattering * n_r * s_r + atm.mie_scattering * n_m * s_m
+            phase = phase_rayleigh(nu)                                                 # (H, A, D, 1)
+            j_r = j_r + np.sum(weights * view_t * source, axis=-2) / phase
+            start_r = start_r + source[..., 0, :] / phase
+        start_m = atm.mie_scattering * n_m[..., 0, :] * sun_t[..., 0, :]
+        local_ex = beta_ex[..., 0, :]                                                 # the camera's extinction
+        one_minus_t = -np.expm1(-tau)
+        small = one_minus_t < 1e-9      # d -> 0: J / (1 - T) -> the local scattering over the local extinction
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a_r[rows] = np.where(small, np.where(local_ex > 0.0, start_r / local_ex, 0.0), j_r / one_minus_t)
+            a_m[rows] = np.where(small, np.where(local_ex > 0.0, start_m / local_ex, 0.0), j_m / one_minus_t)
+            mean_extinction[rows] = np.where(d > 0.0, tau / d, local_ex)[:, 0]         # (H, D, 3)
+
+    blocks = np.array_split(np.arange(shape.altitudes), WORKERS)
+    in_parallel(integrate, len(blocks))
     e_top = atm.sun_irradiance_top
     full = (shape.altitudes, shape.azimuths, shape.distances, 3)
     tile = Tile(shape, r_c, d_max, np.ascontiguousarray(np.broadcast_to(mean_extinction, full[:1] + full[2:])),

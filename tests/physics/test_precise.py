@@ -109,6 +109,36 @@ def test_the_scattering_orders_are_solved_as_the_direct_solve_would():
     assert np.abs(iterative.first_moment - reference.first_moment).max() <= 1e-8 * reference.psi.max()
 
 
+def test_the_tables_built_on_threads_are_those_of_one_thread(monkeypatch):
+    """The multiple-scattering table's altitudes and the tile's rows are built on :data:`precise.WORKERS` threads, each
+    writing its own slices: the same numbers to the bit as one thread (3 threads here, whatever the machine), and a
+    thread's exception reaches the caller."""
+    from atmos_addon.physics import precise
+
+    atm = load("mars").atmosphere.replace(mie_g=0.7)     # not a preset's: no cached tables
+    shape = TableShape(17, 4, 12)
+
+    def build(workers: int):
+        monkeypatch.setattr(precise, "WORKERS", workers)
+        ms = MultipleScatteringTable(atm, SunTransmittanceTable(atm), n_altitudes=12, n_cosines=17)
+        monkeypatch.setattr(precise, "atmosphere_tables", lambda *args: (ms._sun_table, ms))
+        tile = precise.integrate_tile(atm, 500.0, math.radians(3.0), shape=shape)
+        return ms, tile
+
+    one, one_tile = build(1)
+    three, three_tile = build(3)
+    for name in ("psi", "first_moment", "single", "in_scattering"):
+        np.testing.assert_array_equal(getattr(three, name), getattr(one, name))
+    np.testing.assert_array_equal(three_tile.pixels(), one_tile.pixels())
+
+    def fails(index: int) -> None:
+        if index == 2:
+            raise ArithmeticError("block 2")
+
+    with pytest.raises(ArithmeticError, match="block 2"):
+        precise.in_parallel(fails, 4)
+
+
 def test_the_sun_tables_share_their_geometry_not_their_coefficients():
     """An edit of the haze, its colour or the ozone's amount reuses the sun table's Chapman and ozone grids (they
     depend on the planet, the top and the scale heights only) and transmits as a table built from nothing; a new
