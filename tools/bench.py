@@ -5,7 +5,7 @@
     ./run bench --scale-only        # the scale table only
     .venv/bpy-5.2.3/bin/python tools/bench.py    # this interpreter's Blender only
 
-Three parts, each in its own process:
+Four parts, each in its own process:
 
 * **Render cost** (``tools/bench_quality_cost.py``, this interpreter's Blender): the valley in Cycles (320x180,
   64 samples, 2 threads) and Eevee (160x90, 16 samples), each configuration rendered untimed once, then
@@ -13,6 +13,8 @@ Three parts, each in its own process:
   artist renders without Atmos).
 * **Animation and interaction** (``tools/bench_animation.py``): enable on the still and on an animated valley
   (key tiles, .blend growth), a sun move and an atmosphere edit on the still one.
+* **Tables** (``tools/bench_tables.py``, this interpreter): the Precise tables and tile an atmosphere edit and a sun
+  move bake, physics alone, on this machine's threads and on one.
 * **Scale** (``tools/bench_scale.py``, every ``--python-bin``): enable, parameter sync, preset load and disable
   on 5000 materials / 20000 objects. Python wall time (``time.perf_counter``) of single calls in background
   mode; the depsgraph evaluation that follows an edit in the interface is not included.
@@ -32,11 +34,14 @@ import sys
 import tempfile
 from pathlib import Path
 
+import bench_tables
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
 SCALE_SCRIPT = REPO_ROOT / "tools" / "bench_scale.py"
 DOC = REPO_ROOT / "docs" / "benchmarks.md"
 RENDER_SCRIPT = REPO_ROOT / "tools" / "bench_quality_cost.py"
 ANIMATION_SCRIPT = REPO_ROOT / "tools" / "bench_animation.py"
+TABLES_SCRIPT = REPO_ROOT / "tools" / "bench_tables.py"
 
 #: The render configurations (``tools/bench_quality_cost.py``) and their labels: Atmos's default first.
 RENDER_CONFIGS = (
@@ -231,6 +236,9 @@ def main(argv: list[str] | None = None) -> int:
         print(render_table, flush=True)
         animation_table = animation_markdown(run_json_script(ANIMATION_SCRIPT, ["--frames", str(args.frames)]))
         print(animation_table, flush=True)
+        animation_table += "\n\n" + TABLES_TEMPLATE.format(tables=bench_tables.markdown(
+            run_json_script(TABLES_SCRIPT, ["--repeats", "3"])))
+        print(animation_table, flush=True)
     results = []
     for python in pythons:
         print(f"== {python}", flush=True)
@@ -249,6 +257,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {DOC.relative_to(REPO_ROOT)}")
     return 0
 
+
+TABLES_TEMPLATE = """The bake inside those two rows, physics alone (`tools/bench_tables.py`: an edit of each preset's
+haze, then a tile for a camera 100 m up under a 5 deg sun), on this machine's threads and on one, interleaved:
+
+{tables}"""
 
 COST_TEMPLATE = """## Render cost against Blender's own sky
 
