@@ -320,21 +320,22 @@ NOTES = """## What the numbers say
 - **Per edit**: `tools/bench_node_edits.py` times the two edits against the file's size: `nodes.new` 26-27 us and
   the `node_tree` write 22 us in 4.5.15, 22 us and 19 us in 5.2.3 and 5.3.0, the same with 1000 and with 5000
   materials, so an enable grows linearly with the materials.
-- **The 1 s target**: missed on every version from the day Precise with multiple scattering became the default
-  (December 2026) until the table image was linked before the materials. The cProfile of enable on 5.2.3
-  (`.venv/bpy-5.2.3/bin/python tools/bench_scale.py --profile`) then showed 3.0 s in `enable_effect`'s own calls
-  into Blender: the depsgraph update that reads the camera's matrix, which re-evaluated every object because the
+- **The 1 s target**: missed on every version since Precise with multiple scattering became the default
+  (December 2026): 5.0-6.4 s then, 1.2-1.4 s now, still over by 0.2-0.4 s. The cProfile of enable on 5.2.3
+  (`.venv/bpy-5.2.3/bin/python tools/bench_scale.py --profile`) showed 3.0 s in `enable_effect`'s own calls into
+  Blender: the depsgraph update that reads the camera's matrix, which re-evaluated every object because the
   scene's properties had just been written, and in it the depsgraph handler's bake, whose link of the table image
   into the aerial group was cheap only because no material used the group yet. Updating first moved the 3 s to
   that link (pointing a group that 5000 materials use at a new image re-evaluates all of them). Now the update
   comes before the first write (it evaluates only what a script moved), the tables are baked before the materials
   (the groups link the image as they are built) and a table that needs more key tiles grows its image in place
-  (`image.scale`), so its nodes never need re-pointing: the material pass is what is left. The first depsgraph
-  evaluation after an enable (2.7 s here: every edited material) is Blender's, paid by the next redraw or render
-  whatever Atmos does. A preset load changes the atmosphere and so re-bakes the tables (the sun table's grids are
-  kept when only coefficients change; the multiple-scattering table 1.5-1.9 s on 2 cores since its orders are
-  solved by GMRES and its altitudes built on threads, 4 s before; the tile 0.4-0.5 s, 0.75 s before) instead of
-  the 20 ms target.
+  (`image.scale`), so its nodes never need re-pointing: the material pass (0.9-1.0 s) is what is left. The first
+  depsgraph evaluation after an enable (2.7 s here: every edited material) is Blender's, paid by the next redraw
+  or render whatever Atmos does; Refresh's row is that evaluation, its update coming first. A preset load changes
+  the atmosphere and so re-bakes the tables (the sun table's grids are kept when only coefficients change; the
+  multiple-scattering table 1.4-1.6 s on 2 cores since its orders are solved by GMRES and its altitudes built on
+  threads, 4 s before; the tile 0.4-0.5 s, 0.75 s before: `tools/bench_tables.py`, above) instead of the 20 ms
+  target.
 - Enable also checks each material once for a surface Cycles folds away
   (`materials.keep_opaque`): about 5 us per material (`inject` 85-86 us against 80-81 us without it, 3000
   materials, 5.2.3, two alternating runs).

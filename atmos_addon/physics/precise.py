@@ -447,11 +447,12 @@ class MultipleScatteringTable:
       (f = g, an isotropic rest) 1.2-1.6x too bright.
 
     The directions, steps and view grid were chosen by the bench (more directions change no day case by over 0.5 %
-    and the low suns by a few %). Cost, on this project's 2-core machine: 1.5-1.9 s (December 2026). The light is
-    symmetric about the sun's plane, so only the half of the directions with w_y > 0 is marched and the other half
-    mirrored (the same numbers for half the work: 4 s -> 2.7 s with J alone); the orders are summed by GMRES
-    (:func:`solve_orders`, 0.02-0.03 s a channel where LU took 0.35 s: 4.0 -> 2.4 s); the altitudes' rows are built
-    on :data:`WORKERS` threads (2.4-2.6 -> 1.5-1.9 s on 2 cores; the same numbers to the bit).
+    and the low suns by a few %). Cost, on this project's 2-core machine: 1.4-1.6 s (December 2026,
+    ``tools/bench_tables.py``). The light is symmetric about the sun's plane, so only the half of the directions
+    with w_y > 0 is marched and the other half mirrored (the same numbers for half the work: 4 s -> 2.7 s with J
+    alone); the orders are summed by GMRES (:func:`solve_orders`, 0.02-0.03 s a channel where LU took 0.35 s:
+    4.0 -> 2.4 s); the altitudes' rows are built on :data:`WORKERS` threads (2.3-2.4 s on one thread, 1.4-1.6 s on
+    2 cores; the same numbers to the bit).
     """
 
     def __init__(self, atm: Atmosphere, sun_table: SunTransmittanceTable, ground_albedo=DEFAULT_GROUND_ALBEDO,
