@@ -34,8 +34,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-import bench_tables
-
 REPO_ROOT = Path(__file__).resolve().parent.parent
 SCALE_SCRIPT = REPO_ROOT / "tools" / "bench_scale.py"
 DOC = REPO_ROOT / "docs" / "benchmarks.md"
@@ -238,7 +236,9 @@ def main(argv: list[str] | None = None) -> int:
         print(render_table, flush=True)
         animation_table = animation_markdown(run_json_script(ANIMATION_SCRIPT, ["--frames", str(args.frames)]))
         print(animation_table, flush=True)
-        animation_table += "\n\n" + TABLES_TEMPLATE.format(tables=bench_tables.markdown(
+        from bench_tables import markdown as tables_markdown   # beside this script (others import tools.bench)
+
+        animation_table += "\n\n" + TABLES_TEMPLATE.format(tables=tables_markdown(
             run_json_script(TABLES_SCRIPT, ["--repeats", "3"])))
         print(animation_table, flush=True)
     results = []
