@@ -405,7 +405,7 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
             ("FAST", "Fast", "Constant sea-level density along the ray (Hoffman & Preetham 2002), single "
                              "scattering: ground-level views of nearby land; the cheapest graph", "", 0),
             ("PRECISE", "Precise", "Scattering integrated numerically over the curved planet, baked into a table "
-                                   "image packed into the file (0.5-0.9 s per tile; a moving camera or sun gets key "
+                                   "image packed into the file (0.4-0.8 s per tile; a moving camera or sun gets key "
                                    "tiles along its path, blended per frame); with Multiple Scattering the complete "
                                    "atmosphere", "", 2),
             ("AUTO", "Auto", "Pick the cheapest level whose measured error for this scene (camera and geometry "

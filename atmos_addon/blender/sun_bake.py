@@ -138,7 +138,7 @@ def follow(scene: bpy.types.Scene) -> None:
     edited sun animation or a new frame range would otherwise be overridden by the old keys at every other frame
     and in renders. At once in the background (scripts, the CLI; an animated Precise scene's tables too), else
     0.3 s after the last change (:class:`.debounce.Debounced`), so a slider drag bakes once (the sun's keys only:
-    re-baking the Precise key tiles takes 0.5-0.9 s a tile, so the UI leaves them to Refresh). Cheap when
+    re-baking the Precise key tiles takes 0.4-0.8 s a tile, so the UI leaves them to Refresh). Cheap when
     current (one digest of a few objects' animation)."""
     if scene.name in _baking or is_bake_current(scene):
         return
@@ -150,7 +150,7 @@ def follow(scene: bpy.types.Scene) -> None:
 
 def rebake(scene: bpy.types.Scene, *, precise: bool = True) -> int:
     """Bake the sun's keys again (:func:`bake_sun_animation`) and, with ``precise``, an animated scene's Precise
-    key tiles with them (0.5-0.9 s a tile); the number of frames baked."""
+    key tiles with them (0.4-0.8 s a tile); the number of frames baked."""
     frames = bake_sun_animation(scene)
     if precise and precise_tables.uses_precise(scene) and precise_tables.moves(scene):
         precise_tables.bake(scene)
