@@ -651,13 +651,12 @@ class MultipleScatteringTable:
         n_rows, n_nodes = i.shape[0], self.n_alt * self.n_mu
         row = np.arange(n_rows).reshape((-1,) + (1,) * (i.ndim - 1)) * n_nodes
         flat = np.concatenate([(row + (i0 + di) * self.n_mu + (k0 + dk)).ravel() for di in (0, 1) for dk in (0, 1)])
-        corner = np.stack([(wi * wk).ravel() for wi in (1.0 - fi, fi) for wk in (1.0 - fk, fk)])   # (4, points)
+        corner = np.concatenate([(wi * wk).ravel() for wi in (1.0 - fi, fi) for wk in (1.0 - fk, fk)])
         lead = weights.shape[:-1 - i.ndim]
         columns = np.moveaxis(np.broadcast_to(weights, lead + i.shape + (3,)), -1, len(lead))
-        columns = columns.reshape(-1, 1, i.size)                                    # (lead x 3, 1, points)
-        scattered = np.empty_like(corner)
-        result = np.stack([np.bincount(flat, weights=np.multiply(corner, column, out=scattered).ravel(),
-                                       minlength=n_rows * n_nodes) for column in columns])
+        columns = columns.reshape(-1, i.size)                                       # (lead x 3, points)
+        result = np.stack([np.bincount(flat, weights=corner * np.tile(column, 4), minlength=n_rows * n_nodes)
+                           for column in columns])
         return result.reshape(lead + (3, n_rows, n_nodes))
 
     def __call__(self, altitude_m: ArrayLike, cos_zenith: ArrayLike) -> np.ndarray:
