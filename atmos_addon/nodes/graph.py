@@ -159,6 +159,10 @@ class GraphBuilder:
         """sin(a), a in rad (scalar)."""
         return self._math("SINE", a, label=label)
 
+    def arcsin(self, a: Operand, *, label: str = "") -> Socket:
+        """asin(a) in rad (scalar; a clamped to [-1, 1], as Blender's Math node does)."""
+        return self._math("ARCSINE", a, label=label)
+
     def arctan2(self, y: Operand, x: Operand, *, label: str = "") -> Socket:
         """atan2(y, x) in rad (scalar)."""
         return self._math("ARCTAN2", y, x, label=label)
@@ -531,6 +535,7 @@ _ARRAY_MATH: dict[str, Callable[..., np.ndarray]] = {
     "EXPONENT": np.exp,
     "POWER": _safe_power,
     "SINE": np.sin,
+    "ARCSINE": lambda a: np.arcsin(np.clip(a, np.float32(-1.0), np.float32(1.0))),
     "ARCTAN2": np.arctan2,
     "LESS_THAN": lambda a, b: (a < b).astype(np.float32),
     "GREATER_THAN": lambda a, b: (a > b).astype(np.float32),

@@ -195,6 +195,48 @@ def sky_view(g: GraphBuilder, view: Socket, sun: Socket, blend: bool = False) ->
             lookup(g.div(g.add(start, float(DEFAULT_SHAPE.sky_azimuths)), width), "ground transmittance"))
 
 
+def camera_sky_view(g: GraphBuilder, view: Socket, sun: Socket, mu: Socket,
+                    blend: bool = False) -> tuple[Socket, Socket]:
+    """(radiance, elevation above the horizon in rad) of the frame's camera sky view
+    (``physics.precise.camera_sky_view``, sampled as ``physics.precise.camera_sky_from_tile``): two filtered lookups
+    in the tile's last blocks,
+
+        e_h = asin(-sqrt(h_c (2 R + h_c)) / (R + h_c))                        the horizon's elevation
+        row = (N - 1) sqrt(max(asin(v_z) - e_h, 0) / (pi/2 - e_h)),   column = azimuth from the sun (N_s - 1) / pi
+        radiance = image(x0 + Rayleigh offset + 0.5 + column, ...) + Phi_HG(mu, g) image(x0 + Mie offset + ...)
+
+    (Cycles' Linear lookup; row 0 at and below the horizon, where the world shows the table's own sky). With
+    ``blend`` each lookup is blended with the next key tile's (:class:`KeyBlend`)."""
+    vx, vy, vz = g.separate(view, label="v")
+    sx, sy, _ = g.separate(sun, label="l")
+    x0, y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile (x0, y0, h_c)")
+    width, height, _ = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"), label="atlas (W, H)")
+    radius = g.attribute(parameters.PLANET_RADIUS, output="Fac")
+    ground_term = g.mul(h_c, g.multiply_add(radius, 2.0, h_c), label="h_c (2 R + h_c)")
+    horizon = g.arcsin(g.div(g.sqrt(ground_term), g.add(radius, h_c)), label="-e_h")   # minus the horizon's elevation
+    above = g.add(g.arcsin(vz, label="e"), horizon, label="e - e_h")
+    row = g.mul(g.sqrt(g.div(g.max(above, 0.0), g.add(horizon, 0.5 * math.pi))), float(ALTITUDES - 1),
+                label="camera sky row")
+    v = g.div(g.add(g.add(y0, 0.5), row), height, label="v (camera sky)")
+    column = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (DEFAULT_SHAPE.sky_azimuths - 1) / math.pi,
+                   label="camera sky column")
+    start = g.add(g.add(x0, column), DEFAULT_SHAPE.camera_sky_offset + 0.5, label="camera sky x")
+    mixer = KeyBlend(g, height) if blend else None
+
+    def lookup(offset: float, label: str) -> Socket:
+        u = g.div(g.add(start, offset), width, label=f"u ({label})")
+        first = g.texture(table_image(), u, v, label=label)
+        if mixer is None:
+            return first
+        return mixer.mix(first, g.texture(table_image(), u, g.add(v, mixer.step_v), label=f"{label}, next key"),
+                         label)
+
+    rayleigh = lookup(0.0, "camera sky, Rayleigh")
+    mie = lookup(float(DEFAULT_SHAPE.sky_azimuths), "camera sky, Mie")
+    phase = phase_henyey_greenstein(g, mu, g.attribute(parameters.MIE_G))
+    return g.multiply_add(mie, phase, rayleigh, label="camera sky"), above
+
+
 def tile_camera(g: GraphBuilder) -> tuple[Socket, Socket, Socket]:
     """(h_c, top, R) in m: the tile's camera altitude, the table's top and the planet radius (parameters)."""
     _, _, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile h_c")

@@ -38,6 +38,8 @@ AERIAL = GroupKind("Atmos Aerial Perspective", "ShaderNodeTree", 5)
 AERIAL_SEGMENT = GroupKind("Atmos Aerial Perspective (Ray Segment)", "ShaderNodeTree", 5)
 SKY = GroupKind("Atmos Sky", "ShaderNodeTree", 3)
 SKY_LIGHTING = GroupKind("Atmos Sky Lighting", "ShaderNodeTree", 1, per_world=True)
+#: The Precise sky for Cycles' camera rays above the horizon (:mod:`.sky_view`).
+SKY_VIEW = GroupKind("Atmos Sky View", "ShaderNodeTree", 1)
 SURFACE = GroupKind("Atmos Surface AOVs", "ShaderNodeTree", 3)
 COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 1)
 PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 4)
@@ -46,7 +48,7 @@ IN_RENDER_SKY = GroupKind("Atmos In-Render Sky", "ShaderNodeTree", 3)
 #: Not a node group: the tree of each haze dome's material (In-Render mode), its features key the species.
 DOME_VOLUME = GroupKind("Atmos Dome", "ShaderNodeTree", 3)
 #: Every kind, in build order (a group that instances another comes after it).
-KINDS = (AERIAL, AERIAL_SEGMENT, SKY, SKY_LIGHTING, SURFACE, COMPOSITE, PER_PIXEL, IN_RENDER_SURFACE, IN_RENDER_SKY)
+KINDS = (AERIAL, AERIAL_SEGMENT, SKY, SKY_LIGHTING, SKY_VIEW, SURFACE, COMPOSITE, PER_PIXEL, IN_RENDER_SURFACE, IN_RENDER_SKY)
 #: The key stamped by releases before the kind key on the per-world lighting groups (their names are numbered).
 _LEGACY_SKY_LIGHTING_KEY = "atmos_sky_lighting"
 

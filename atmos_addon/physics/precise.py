@@ -111,10 +111,17 @@ class TableShape:
         return self.distances * (1 + 2 * self.azimuths)
 
     @property
-    def width(self) -> int:
-        """Texels across one tile: the aerial blocks, then the sky view's radiance columns and its ground
-        transmittance column, px."""
+    def camera_sky_offset(self) -> int:
+        """First column of the camera's sky view (:func:`camera_sky_view`): after the sky view's radiance columns
+        and its ground-transmittance column, px. Two blocks of ``sky_azimuths`` columns: the Rayleigh term (its
+        phase function included), then the Mie term (without it)."""
         return self.sky_view_offset + self.sky_azimuths + 1
+
+    @property
+    def width(self) -> int:
+        """Texels across one tile: the aerial blocks, the sky view's radiance columns and its ground
+        transmittance column, then the camera's sky view, px."""
+        return self.camera_sky_offset + 2 * self.sky_azimuths
 
 
 #: The shape the add-on bakes (its node graph is built for it).
@@ -734,6 +741,11 @@ class Tile:
     #: transmittance (altitudes rows, 3); None until :func:`integrate_tile` adds them.
     sky_radiance: np.ndarray | None = None
     sky_ground_transmittance: np.ndarray | None = None
+    #: The camera's sky view (:func:`camera_sky_view`): the Rayleigh in-scattering (its phase function included) and
+    #: the Mie in-scattering without its phase function, per view direction above the horizon, W/(m^2 sr), each
+    #: (altitudes rows, sky azimuths, 3); None until :func:`integrate_tile` adds them.
+    camera_sky_rayleigh: np.ndarray | None = None
+    camera_sky_mie: np.ndarray | None = None
 
     def pixels(self) -> np.ndarray:
         """The tile as image pixels (altitudes, width, 3): row = altitude, columns = the extinction block
@@ -742,7 +754,8 @@ class Tile:
         rows = self.shape.altitudes
         return np.concatenate([self.mean_extinction, self.a_rayleigh.reshape(rows, -1, 3),
                                self.a_mie.reshape(rows, -1, 3), self.sky_radiance,
-                               self.sky_ground_transmittance[:, None, :]], axis=1)
+                               self.sky_ground_transmittance[:, None, :], self.camera_sky_rayleigh,
+                               self.camera_sky_mie], axis=1)
 
 
 def _simpson_weights(n: int) -> np.ndarray:
@@ -781,7 +794,7 @@ def _cached_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: f
     tile = integrate_tile(atm, camera_altitude_m, sun_elevation_rad, multiple_scattering=multiple_scattering,
                           ground_albedo=ground_albedo, shape=shape, max_distance_m=max_distance_m)
     for array in (tile.mean_extinction, tile.a_rayleigh, tile.a_mie, tile.sky_radiance,
-                  tile.sky_ground_transmittance):
+                  tile.sky_ground_transmittance, tile.camera_sky_rayleigh, tile.camera_sky_mie):
         array.setflags(write=False)
     return tile
 
@@ -866,7 +879,9 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
                 np.ascontiguousarray(np.broadcast_to(a_r * e_top, full)),
                 np.ascontiguousarray(np.broadcast_to(a_m * e_top, full)))
     radiance, ground_transmittance = sky_view(tile, sun_elevation_rad, atm)
-    return dataclasses.replace(tile, sky_radiance=radiance, sky_ground_transmittance=ground_transmittance)
+    rayleigh, mie = camera_sky_view(tile, sun_elevation_rad, atm)
+    return dataclasses.replace(tile, sky_radiance=radiance, sky_ground_transmittance=ground_transmittance,
+                               camera_sky_rayleigh=rayleigh, camera_sky_mie=mie)
 
 
 def horizon_cosine(camera_altitude_m: float, atm: Atmosphere) -> float:
@@ -963,6 +978,80 @@ def lighting_from_tile(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, atm:
     ground = _linear_lookup(tile.sky_ground_transmittance[:, None, :], np.zeros_like(row), row, dt)
     lit = np.asarray(albedo, dtype=dt) * np.asarray(e_sun, dtype=dt) * (max(float(s[2]), 0.0) / np.pi)
     return (light + ground * lit).astype(dt)
+
+
+# -- The camera's sky view ---------------------------------------------------------------------------------------
+#
+# Cycles evaluates the world for every camera sample that misses the scene: the Precise sky of :func:`sky_from_tile`
+# (ten texel fetches and some 240 nodes) there cost about as much as Blender's whole Sky Texture (the camera's sky
+# 0.85 s of a 3.6 s Per Pixel render, Blender's sky 0.88 s; tools/bench_quality_cost.py --decompose). Above the
+# horizon the same sky tabulated by view direction reads it with two filtered lookups; the Mie phase function stays
+# in the shader, so the sun's aureole keeps its exact shape however coarse the azimuths. Rows go by elevation,
+# crowded at the horizon (the sky's fastest change) without starving the zenith (a zenith cosine's rows are 18 deg
+# apart there). At and below the horizon the camera keeps the table's own sky: a 2 m camera sees the ground's path
+# shrink from 5 km to 1 km within 0.05 deg below it, which no row spacing follows, and a far surface's haze meets
+# the sky behind it there (the seamless horizon; ``atmos_addon.nodes.sky_view``).
+
+def camera_sky_elevations(shape: TableShape, horizon_elevation_rad: float) -> np.ndarray:
+    """Elevations (rad) of the camera sky view's rows: e_j = e_h + (pi/2 - e_h) (j / (N - 1))^2 from the horizon's
+    e_h to the zenith, the first nudged above the horizon (:data:`HORIZON_NUDGE`: the sky's grazing ray)."""
+    t = np.arange(shape.altitudes) / (shape.altitudes - 1)
+    elevations = horizon_elevation_rad + (0.5 * np.pi - horizon_elevation_rad) * t * t
+    elevations[0] += HORIZON_NUDGE
+    return elevations
+
+
+def camera_sky_rows(shape: TableShape, view_cos_zenith: ArrayLike, horizon_elevation_rad,
+                    dtype: DTypeLike = np.float32) -> np.ndarray:
+    """Fractional rows of :func:`camera_sky_elevations` for view zenith cosines, as the shader computes them:
+    (N - 1) sqrt(max(asin(z) - e_h, 0) / (pi/2 - e_h)) (row 0 at and below the horizon)."""
+    dt = np.dtype(dtype).type
+    e_h = dt(horizon_elevation_rad)
+    elevation = np.arcsin(np.clip(np.asarray(view_cos_zenith, dtype=dt), dt(-1), dt(1)))
+    return (np.sqrt(np.maximum(elevation - e_h, dt(0)) / (dt(0.5 * np.pi) - e_h))
+            * dt(shape.altitudes - 1)).astype(dt)
+
+
+def horizon_elevation(camera_altitude_m: float, atm: Atmosphere) -> float:
+    """Elevation of the horizon seen from altitude h_c, rad (<= 0): asin(:func:`horizon_cosine`)."""
+    return math.asin(horizon_cosine(camera_altitude_m, atm))
+
+
+def camera_sky_view(tile: Tile, sun_elevation_rad: float, atm: Atmosphere) -> tuple[np.ndarray, np.ndarray]:
+    """The tile's Precise sky above the horizon by view direction, for Cycles' camera rays: (Rayleigh, Mie), each
+    (rows, sky azimuths, 3) W/(m^2 sr): :func:`sky_from_tile`'s Phi_R(nu) A_R (1 - F_ex) and A_M (1 - F_ex) (float64,
+    the same cells) at the elevations :func:`camera_sky_elevations` and azimuths from the sun pi k / (N - 1). The
+    shader forms L = Rayleigh + Phi_HG(nu, g) Mie (:func:`camera_sky_from_tile`)."""
+    shape = tile.shape
+    altitude = float(tile.camera_radius_m - atm.planet_radius)
+    elevation = camera_sky_elevations(shape, horizon_elevation(altitude, atm))[:, None]
+    azimuth = np.linspace(0.0, np.pi, shape.sky_azimuths)[None, :]
+    views = np.stack(np.broadcast_arrays(np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth),
+                                         np.sin(elevation)), axis=-1)
+    sun = np.array([math.cos(sun_elevation_rad), 0.0, math.sin(sun_elevation_rad)])
+    length, _ = sky_path_length(views[..., 2], altitude, atm, np.float64)
+    _, rayleigh, mie, nu = _phase_free_terms(tile, views, sun, length, atm, np.float64,
+                                             row=np.full(length.shape, shape.altitudes - 1.0))
+    return np.ascontiguousarray(phase_rayleigh(nu)[..., None] * rayleigh), np.ascontiguousarray(mie)
+
+
+def camera_sky_from_tile(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere,
+                         dtype: DTypeLike = np.float32) -> np.ndarray:
+    """The camera's Precise sky above the horizon, radiance (..., 3) along unit ``view_dir`` (..., 3) (no sun disk):
+    the camera sky view (:func:`camera_sky_view`) sampled bilinearly at the row :func:`camera_sky_rows` and the
+    azimuth column a (N - 1) / pi, Rayleigh + Phi_HG(nu, g) Mie: what the "Atmos Sky View" group's two Linear
+    lookups give. Below the horizon it reads the horizon's row (the world shows :func:`sky_from_tile` there)."""
+    dt = np.dtype(dtype).type
+    shape = tile.shape
+    v = np.asarray(view_dir, dtype=dt)
+    s = np.asarray(sun_dir, dtype=dt)
+    row = camera_sky_rows(shape, v[..., 2], horizon_elevation(tile.camera_radius_m - atm.planet_radius, atm), dt)
+    cross = np.abs(v[..., 0] * s[1] - v[..., 1] * s[0])
+    azimuth = np.arctan2(cross, v[..., 0] * s[0] + v[..., 1] * s[1]) * dt((shape.sky_azimuths - 1) / np.pi)
+    rayleigh = _linear_lookup(tile.camera_sky_rayleigh, azimuth, row, dt)
+    mie = _linear_lookup(tile.camera_sky_mie, azimuth, row, dt)
+    nu = np.einsum("...i,i->...", v, s)
+    return (rayleigh + phase_hg(nu, atm.mie_g, dtype) * mie).astype(dt)
 
 
 def sky_radiance(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, *, camera_altitude_m: float = 0.0,
@@ -1130,6 +1219,15 @@ def evaluate(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, distance_m: Ar
     caller knows it (the sky's whole rows) instead of the one of the target's altitude.
     """
     dt = np.dtype(dtype).type
+    f_ex, rayleigh, mie, nu = _phase_free_terms(tile, view_dir, sun_dir, distance_m, atm, dtype, row)
+    light = phase_rayleigh(nu, dtype)[..., None] * rayleigh + phase_hg(nu, atm.mie_g, dtype) * mie
+    return f_ex.astype(dt), light.astype(dt)
+
+
+def _phase_free_terms(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, distance_m: ArrayLike, atm: Atmosphere,
+                      dtype: DTypeLike, row: ArrayLike | None = None) -> tuple[np.ndarray, ...]:
+    """:func:`evaluate`'s pieces before the phase functions: (F_ex, A_R (1 - F_ex), A_M (1 - F_ex), nu)."""
+    dt = np.dtype(dtype).type
     views = np.asarray(view_dir, dtype=dt)
     to_top = distance_to_top(views[..., 2], float(tile.camera_radius_m - atm.planet_radius), atm, dt)
     d = np.minimum(np.maximum(np.asarray(distance_m, dtype=dt), dt(0)), to_top)
@@ -1142,8 +1240,7 @@ def evaluate(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, distance_m: Ar
     tau = extinction_per_m * d[..., None]
     f_ex = np.exp(-tau)
     one_minus_t = tau * one_minus_exp_over_x(tau, dtype)
-    light = (phase_rayleigh(nu, dtype)[..., None] * a_r + phase_hg(nu, atm.mie_g, dtype) * a_m) * one_minus_t
-    return f_ex.astype(dt), light.astype(dt)
+    return f_ex, a_r * one_minus_t, a_m * one_minus_t, nu
 
 
 # -- An animated camera or sun: key tiles along its path, blended ----------------------------------------------
@@ -1280,7 +1377,9 @@ def blend_tiles(first: Tile, second: Tile, weight: float, camera_altitude_m: flo
     return Tile(first.shape, atm.planet_radius + max(float(camera_altitude_m), 0.0), first.max_distance_m,
                 lerp(first.mean_extinction, second.mean_extinction), lerp(first.a_rayleigh, second.a_rayleigh),
                 lerp(first.a_mie, second.a_mie), lerp(first.sky_radiance, second.sky_radiance),
-                lerp(first.sky_ground_transmittance, second.sky_ground_transmittance))
+                lerp(first.sky_ground_transmittance, second.sky_ground_transmittance),
+                lerp(first.camera_sky_rayleigh, second.camera_sky_rayleigh),
+                lerp(first.camera_sky_mie, second.camera_sky_mie))
 
 
 #: Rec. 709 luminance weights (Blender's default scene-linear space), for the blend's error.

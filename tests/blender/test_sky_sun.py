@@ -535,6 +535,150 @@ def test_precise_level_shows_and_lights_with_the_precise_sky(addon):
     assert not any(g.name.startswith("Atmos Sky") for g in bpy.data.node_groups)
 
 
+def test_the_camera_sky_view_group_samples_the_core_s_camera_sky_view():
+    """The "Atmos Sky View" group (Cycles' camera rays at the Precise level) rendered through a camera against
+    ``physics.precise.camera_sky_from_tile`` above the horizon (the disk left out), its numpy graph against the same
+    (every direction: below the horizon it reads the horizon's row) and its band weight against its formula; built
+    with ``blend`` (an animated camera or sun), its graph on a two-key image against ``blend_tiles``."""
+    from atmos_addon.blender.apply import precise_tables
+    from atmos_addon.nodes import parameters, sky_view, stamps
+    from atmos_addon.nodes.precise import IMAGE_NAME
+    from atmos_addon.physics.precise import (bake_tile, blend_tiles, camera_sky_from_tile, horizon_elevation,
+                                             shared_max_distance)
+
+    scene = ru.reset_scene()
+    camera = ru.make_camera(scene, rotation_euler=(math.radians(105.0), 0.0, math.radians(-20.0)),
+                            fov_rad=math.radians(100.0))
+    sky_world = bpy.data.worlds.new("Sky view")
+    _use_nodes(sky_world)
+    scene.world = sky_world
+    tree = sky_world.node_tree
+    group = tree.nodes.new("ShaderNodeGroup")
+    features = SkyFeatures(level="precise")
+    group.node_tree = sky_view.ensure_sky_view_group(features)
+    assert stamps.kind_of(group.node_tree) == stamps.SKY_VIEW
+    assert sum(n.bl_idname == "ShaderNodeTexImage" for n in group.node_tree.nodes) == 2
+    tree.links.new(group.outputs[OUTPUT_RADIANCE], tree.nodes["Background"].inputs["Color"])
+    sky_world.cycles.sampling_method = "NONE"
+    bpy.context.view_layer.update()
+    width, height = 24, 16
+    ru.set_engine(scene, "CYCLES", width=width, height=height)
+    directions = ru.pixel_centre_directions(camera, width, height)
+    for elevation, azimuth, altitude in ((40.0, 150.0, 2.0), (2.0, 10.0, 3000.0)):
+        sun = _sun(elevation, azimuth)
+        e_sun, tile = _write_precise_sky(scene, sun, altitude)
+        image = bpy.data.images[IMAGE_NAME]
+        assert {n.image for n in group.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"} == {image}
+        rendered = ru.render_to_array(scene)[..., :3]
+        expected = camera_sky_from_tile(tile, directions, sun, ATMOSPHERE)
+        above = np.arcsin(directions[..., 2]) > horizon_elevation(altitude, ATMOSPHERE)
+        off_sun = np.degrees(np.arccos(np.clip(directions @ sun, -1.0, 1.0))) > 1.5
+        label = f"sun {elevation} deg, camera {altitude} m"
+        assert above.any() and (~above).any(), label
+        error = _relative_error(rendered, expected)[above & off_sun]
+        assert error.max() < TOLERANCE["CYCLES"], f"{label}: worst relative error {error.max():.2e}"
+        pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+        values = parameters.shader_parameter_values(
+            beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
+            beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
+            sun_irradiance=e_sun, metres_per_unit=1.0, ground_albedo=ALBEDO, planet_radius=ATMOSPHERE.planet_radius)
+        values.update({parameters.PRECISE_TILE: (0.0, 0.0, altitude),
+                       parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+        flat = directions.reshape(-1, 3)
+        graph, exact = sky_view.evaluate(features, values, view_direction=flat,
+                                         images={IMAGE_NAME: pixels.reshape(image.size[1], image.size[0], 4)})
+        np.testing.assert_allclose(graph[off_sun.ravel()], expected.reshape(-1, 3)[off_sun.ravel()], rtol=1e-4,
+                                   atol=1e-6 * e_sun.max())
+        height_deg = np.degrees(np.arcsin(flat[:, 2]) - horizon_elevation(altitude, ATMOSPHERE))
+        weight = np.clip((sky_view.VIEW_ABOVE_DEG - height_deg) / (sky_view.VIEW_ABOVE_DEG - sky_view.EXACT_BELOW_DEG),
+                         0.0, 1.0)
+        np.testing.assert_allclose(exact, weight, atol=1e-4)
+        assert exact.min() == 0.0 and exact.max() == 1.0, label
+    blending = SkyFeatures(level="precise", blend=True)
+    blended_group = sky_view.ensure_sky_view_group(blending)
+    assert blended_group == group.node_tree and sum(n.bl_idname == "ShaderNodeTexImage"
+                                                    for n in blended_group.nodes) == 4
+    d_max = shared_max_distance([2.0, 300.0], ATMOSPHERE)
+    keys = [bake_tile(ATMOSPHERE, h, math.radians(e), max_distance_m=d_max) for h, e in ((2.0, 6.0), (300.0, 5.0))]
+    image = precise_tables.write_tiles(keys)
+    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    views = np.random.default_rng(4).normal(size=(2000, 3))
+    views[:, 2] = np.abs(views[:, 2])
+    views /= np.linalg.norm(views, axis=1, keepdims=True)
+    weight, altitude, sun = 0.4, 120.0, _sun(5.6, 70.0)
+    values = parameters.shader_parameter_values(
+        beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
+        beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
+        sun_irradiance=ATMOSPHERE.sun_irradiance_top, metres_per_unit=1.0, ground_albedo=ALBEDO,
+        planet_radius=ATMOSPHERE.planet_radius)
+    values.update({parameters.PRECISE_TILE: (0.0, 0.0, altitude),
+                   parameters.PRECISE_SCALE: (d_max, ATMOSPHERE.atmosphere_height, weight),
+                   parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+    graph, _ = sky_view.evaluate(blending, values, view_direction=views,
+                                 images={IMAGE_NAME: pixels.reshape(image.size[1], image.size[0], 4)})
+    blended = blend_tiles(keys[0], keys[1], weight, altitude, ATMOSPHERE)
+    off_sun = np.degrees(np.arccos(np.clip(views @ sun, -1.0, 1.0))) > 1.5
+    expected = camera_sky_from_tile(blended, views, sun, ATMOSPHERE)
+    np.testing.assert_allclose(graph[off_sun], expected[off_sun], rtol=1e-4, atol=1e-6)
+    first = camera_sky_from_tile(dataclasses.replace(keys[0], camera_radius_m=blended.camera_radius_m), views, sun,
+                                 ATMOSPHERE)
+    assert np.max(np.abs(first - expected)) > 100 * np.max(np.abs(graph[off_sun] - expected[off_sun]))
+
+
+def test_precise_level_shows_camera_rays_the_sky_view_above_the_horizon(addon):
+    """Through the installed world at the Precise level: Cycles' camera rays see the "Atmos Sky View" group above
+    the horizon band and the table's own sky ("Atmos Sky") within it and below the horizon, by a Mix Shader on the
+    group's band weight. Rendered against the same world with the camera rays relinked to the table's sky: equal
+    below the horizon, within 0.5 % above the band. A saved file's old route is fixed by the next update; at Fast
+    the view's nodes and group are gone, and disabling leaves no group behind."""
+    from atmos_addon.nodes import stamps
+    from atmos_addon.physics.precise import horizon_elevation
+
+    scene = ru.reset_scene()
+    camera = ru.make_camera(scene, location=(0.0, 0.0, 2.0), rotation_euler=(math.radians(88.0), 0.0, 0.0),
+                            fov_rad=math.radians(50.0))
+    scene.atmos.quality = "PRECISE"
+    orchestrator.enable_effect(scene)
+    scene.render.use_compositing = False
+    width, height = 32, 24
+    ru.set_engine(scene, "CYCLES", width=width, height=height)
+    tagged = {n.get("atmos_tag"): n for n in world.tagged_nodes(scene.world)}
+    mix, band = tagged[world.MIX_TAG], tagged[world.BAND_TAG]
+    assert mix.inputs[2].links[0].from_node == band
+    assert band.inputs[1].links[0].from_node == tagged[world.SKY_VIEW_BACKGROUND_TAG]
+    assert band.inputs[2].links[0].from_node == tagged[world.BACKGROUND_TAG]
+    assert band.inputs["Fac"].links[0].from_node == tagged[world.SKY_VIEW_TAG]
+    view_group = tagged[world.SKY_VIEW_TAG].node_tree
+    assert stamps.kind_of(view_group) == stamps.SKY_VIEW
+    image = bpy.data.images["Atmos Precise Table"]
+    textures = [n for n in view_group.nodes if n.bl_idname == "ShaderNodeTexImage"]
+    assert len(textures) == 2 and all(n.image == image and n.interpolation == "Linear" for n in textures)
+    assert world.camera_background(mix) == tagged[world.BACKGROUND_TAG]
+    shown = ru.render_to_array(scene)[..., :3]
+    scene.world.node_tree.links.new(tagged[world.BACKGROUND_TAG].outputs["Background"], mix.inputs[2])
+    table = ru.render_to_array(scene)[..., :3]
+    directions = ru.pixel_centre_directions(camera, width, height)
+    height_deg = np.degrees(np.arcsin(directions[..., 2]) - horizon_elevation(2.0, scene_reading.atmosphere_of(scene)))
+    below, above = height_deg < 1.0, height_deg > 2.0
+    assert below.sum() > 20 and above.sum() > 200
+    np.testing.assert_allclose(shown[below], table[below], rtol=1e-6)
+    error = _relative_error(shown, table)[above]
+    assert error.max() < 5e-3, f"sky view against the table's sky: {error.max():.2e}"
+    assert not np.array_equal(shown[above], table[above])   # the view, not the table, above the band
+    world.update_sky_lighting(scene, facts.sky_features(facts.plan_of(scene)))   # a saved file's old route: fixed
+    assert mix.inputs[2].links[0].from_node == band
+    scene.atmos.quality = "FAST"
+    assert not any(n.get("atmos_tag") in world.SKY_VIEW_TAGS for n in world.tagged_nodes(scene.world))
+    assert mix.inputs[2].links[0].from_node == tagged[world.BACKGROUND_TAG]
+    assert stamps.SKY_VIEW.name not in bpy.data.node_groups
+    scene.atmos.quality = "PRECISE"
+    assert world.tagged_nodes(scene.world) and mix.inputs[2].links[0].from_node.get("atmos_tag") == world.BAND_TAG
+    orchestrator.disable_effect(scene)
+    assert not any(g.name.startswith("Atmos Sky") for g in bpy.data.node_groups)
+
+
 def test_sun_angles_round_trip(addon):
     scene = addon
     lamp, message = sun_lamp.ensure_sun_lamp(scene)

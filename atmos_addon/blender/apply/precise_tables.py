@@ -33,9 +33,12 @@ MAX_TEXTURE_SIZE = 16384
 TILES_PER_COLUMN = MAX_TEXTURE_SIZE // DEFAULT_SHAPE.altitudes
 _KEY = "atmos_bake_key"
 _TILES = "atmos_tiles"
-#: Bumped when the same inputs bake a different table (2: key tiles blended instead of a tile per frame), so a file
-#: saved before re-bakes on opening.
-_LAYOUT = 2
+#: Bumped when the same inputs bake a different table (2: key tiles blended instead of a tile per frame, 3: the
+#: camera's sky view after the sky view), so a file saved before re-bakes on opening (:func:`follow`), its key tiles
+#: included.
+_LAYOUT = 3
+#: Image property: the :data:`_LAYOUT` its tiles were written with.
+_LAYOUT_KEY = "atmos_layout"
 
 
 def _camera_altitude_m(scene, metres_per_unit: float) -> float:
@@ -117,11 +120,12 @@ def write_tiles(tiles: list[Tile]) -> bpy.types.Image:
 
 
 def _link_image(image: bpy.types.Image) -> None:
-    """Point the image nodes of the aerial group, of the Precise sky, of the worlds' lighting groups (the Precise
-    sky view) and of the Per Pixel compositor group (those built) at ``image``."""
+    """Point the image nodes of the aerial group, of the Precise sky and its camera sky view, of the worlds' lighting
+    groups (the Precise sky view) and of the Per Pixel compositor group (those built) at ``image``."""
     groups = scene_reading.groups()
     named = [bpy.data.node_groups.get(name) for name in (groups.aerial_perspective.GROUP_NAME,
-                                                        groups.sky.SKY_GROUP_NAME, groups.per_pixel.GROUP_NAME)]
+                                                        groups.sky.SKY_GROUP_NAME, groups.stamps.SKY_VIEW.name,
+                                                        groups.per_pixel.GROUP_NAME)]
     lighting = [tree for tree in bpy.data.node_groups if groups.sky_lighting.is_sky_lighting_group(tree)]
     for group in named + lighting:
         stale = [node for node in (group.nodes if group is not None else ())
@@ -174,6 +178,7 @@ def bake(scene, *, force: bool = False) -> int:
                        max_distance_m=shared) for altitude, elevation in path.keys]
     image = write_tiles(tiles)
     image[_KEY] = key
+    image[_LAYOUT_KEY] = _LAYOUT
     image[_TILES] = len(tiles)
     scene[facts.KEY_TILES] = len(tiles)
     size = tuple(image.size)
@@ -257,13 +262,25 @@ def follow(scene) -> None:
     """After a parameter, sun or camera change: re-bake a still scene's one tile (at once in the background, else
     0.3 s after the last change, so a slider drag bakes once). An animated scene's key tiles are re-baked by
     Enable, Refresh and quality changes (:func:`bake`), and in the background with the sun's keys when an edit
-    makes those stale (:func:`.sun_bake.follow`); in the UI not on every edit (0.4-0.8 s a key tile)."""
-    if not uses_precise(scene) or moves(scene):
+    makes those stale (:func:`.sun_bake.follow`); in the UI not on every edit (0.4-0.8 s a key tile), except once
+    for a file whose image has an older tile layout (:func:`layout_stale`)."""
+    if not uses_precise(scene):
+        return
+    if moves(scene):
+        if layout_stale():
+            bake(scene)   # a file saved by an Atmos that laid its tiles out otherwise: its key tiles, once
         return
     if bpy.app.background:
         bake(scene)
         return
     _later.request(scene)
+
+
+def layout_stale() -> bool:
+    """True when the file's table image was written with another tile layout than this version's (an older
+    Atmos's): its groups would read the wrong columns until it is baked again."""
+    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
+    return image is not None and image.get(_LAYOUT_KEY) != _LAYOUT
 
 
 def _bake_if_still(scene) -> None:

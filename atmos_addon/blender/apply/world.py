@@ -2,17 +2,19 @@
 """The Atmos sky in the scene's world, inserted non-destructively and removed exactly.
 
 The user's world data-block is kept (its Eevee probe resolution, sun-extraction and Cycles sampling settings,
-its other nodes): seven tagged nodes are added to its tree. The analytic "Atmos Sky" group
+its other nodes): seven tagged nodes are added to its tree (ten at the Precise level). The analytic "Atmos Sky" group
 (:mod:`atmos_addon.nodes.sky`) feeds a Background shader of strength 1, and that Background feeds the active World
 Output's Surface: what Eevee renders, and what Cycles' camera rays see. For Cycles a second, Cycles-target
 World Output is added: a Mix Shader on Light Path > Is Camera Ray gives camera rays that same Background and
 every other ray (light samples of the world, rays escaping after a bounce) the same sky from the world's own
 "Atmos Sky Lighting" group (:mod:`atmos_addon.nodes.sky_lighting`: a per-atmosphere table, or at the Precise level
 the frame's sky view in the baked table image; a fraction of the cost);
-Cycles skips the branch it does not pick. The link that fed Surface before is remembered (node name and socket
+Cycles skips the branch it does not pick. At the Precise level the camera rays' branch is itself a Mix Shader
+(:func:`_route_camera_rays`): the "Atmos Sky View" group's two lookups above the horizon, the camera's Background
+within a band at the horizon and below it. The link that fed Surface before is remembered (node name and socket
 identifier) and put back when the sky is removed; nothing else in the tree is touched, so the tree comes back
-exactly. :func:`sync_sky_lighting` writes the table when the atmosphere changes. A scene without a world gets a new world
-"Atmos Sky World", removed again (with the scene's world slot emptied) on removal.
+exactly. :func:`sync_sky_lighting` writes the table when the atmosphere changes. A scene without a world gets a new
+world "Atmos Sky World", removed again (with the scene's world slot emptied) on removal.
 
 Cycles importance-samples the world only when its sampling method is not "None"; an Atmos sky with sampling
 off would light the scene with noise, so "None" is switched to "Automatic" and restored on removal. Other
@@ -39,9 +41,14 @@ LIGHTING_BACKGROUND_TAG = "sky lighting background"
 RAY_SWITCH_TAG = "sky ray switch"
 MIX_TAG = "sky mix"
 CYCLES_OUTPUT_TAG = "sky cycles output"
-#: Every tag of the nodes :func:`install_sky` adds.
+SKY_VIEW_TAG = "sky view"
+SKY_VIEW_BACKGROUND_TAG = "sky view background"
+BAND_TAG = "sky horizon band"
+#: The nodes of the Precise level's camera sky view (:func:`_route_camera_rays`).
+SKY_VIEW_TAGS = (SKY_VIEW_TAG, SKY_VIEW_BACKGROUND_TAG, BAND_TAG)
+#: Every tag of the nodes :func:`install_sky` and :func:`_route_camera_rays` add.
 TAGS = (SKY_NODE_TAG, BACKGROUND_TAG, LIGHTING_TAG, LIGHTING_BACKGROUND_TAG, RAY_SWITCH_TAG, MIX_TAG,
-        CYCLES_OUTPUT_TAG)
+        CYCLES_OUTPUT_TAG) + SKY_VIEW_TAGS
 #: Cycles world importance map width (pixels) while the Atmos sky is in the world (height is half).
 SKY_IMPORTANCE_MAP_RESOLUTION = 256
 
@@ -73,9 +80,10 @@ def _tagged(world: bpy.types.World, tag: str, bl_idname: str | None = None) -> b
 
 def camera_background(node: bpy.types.Node) -> bpy.types.Node:
     """The Background that camera rays see through ``node`` (a World Output's Surface source): the Atmos sky's
-    camera Background when ``node`` is its ray switch, else ``node`` itself."""
-    if node.get(TAG) == MIX_TAG and node.inputs[2].is_linked:
-        return node.inputs[2].links[0].from_node
+    camera Background (the table's sky, at the Precise level past the horizon band) when ``node`` is its ray switch,
+    else ``node`` itself."""
+    while node.get(TAG) in (MIX_TAG, BAND_TAG) and node.inputs[2].is_linked:
+        node = node.inputs[2].links[0].from_node
     return node
 
 
@@ -221,7 +229,7 @@ def uninstall_sky(scene: bpy.types.Scene) -> None:
                 warnings.simplefilter("ignore", DeprecationWarning)
                 world.use_nodes = False
     del scene[STATE_KEY]
-    registry.remove_unused((stamps.SKY, stamps.SKY_LIGHTING))
+    registry.remove_unused((stamps.SKY, stamps.SKY_LIGHTING, stamps.SKY_VIEW))
 
 
 def _table_key(atmosphere) -> str:
@@ -245,6 +253,59 @@ def _route_other_rays(world: bpy.types.World) -> None:
         world.node_tree.links.new(source.outputs["Background"], socket)
 
 
+def _route_camera_rays(world: bpy.types.World, features) -> None:
+    """Cycles' camera rays at the Precise level: above the horizon band the "Atmos Sky View" group's two lookups
+    (:mod:`atmos_addon.nodes.sky_view`), within it and below the horizon the camera's Background (the "Atmos Sky"
+    group), mixed by a Mix Shader on the group's Exact weight, whose other branch Cycles skips where the weight is 0
+    or 1. At the Fast level (or before the table has the camera sky view) the camera's Background directly; the
+    view's nodes are removed. Edits only when the route changes."""
+    mix = _tagged(world, MIX_TAG, "ShaderNodeMixShader")
+    background = _tagged(world, BACKGROUND_TAG, "ShaderNodeBackground")
+    if mix is None or background is None:
+        return
+    tree = world.node_tree
+    band = _tagged(world, BAND_TAG, "ShaderNodeMixShader")
+    if features.level != "precise":
+        if not (mix.inputs[2].is_linked and mix.inputs[2].links[0].from_node == background):
+            tree.links.new(background.outputs["Background"], mix.inputs[2])
+        leaving = [n for n in tagged_nodes(world) if n.get(TAG) in SKY_VIEW_TAGS]
+        for node in leaving:
+            tree.nodes.remove(node)
+        if leaving:
+            registry.remove_unused((stamps.SKY_VIEW,))
+        return
+    group = groups().sky_view.ensure_sky_view_group(features)
+    view = _tagged(world, SKY_VIEW_TAG, "ShaderNodeGroup")
+    view_background = _tagged(world, SKY_VIEW_BACKGROUND_TAG, "ShaderNodeBackground")
+    if band is None or view is None or view_background is None:
+        for node in [n for n in tagged_nodes(world) if n.get(TAG) in SKY_VIEW_TAGS]:
+            tree.nodes.remove(node)
+        x, y = mix.location
+        view = tree.nodes.new("ShaderNodeGroup")
+        view.label = "Atmos Sky View"
+        view_background = tree.nodes.new("ShaderNodeBackground")
+        view_background.label = "Atmos Sky View"
+        view_background.inputs["Strength"].default_value = 1.0
+        band = tree.nodes.new("ShaderNodeMixShader")
+        band.label = "Atmos Horizon Band"
+        for node, tag, location in ((view, SKY_VIEW_TAG, (x - 440.0, y + 120.0)),
+                                    (view_background, SKY_VIEW_BACKGROUND_TAG, (x - 200.0, y + 120.0)),
+                                    (band, BAND_TAG, (x, y + 120.0))):
+            node[TAG] = tag
+            node.location = location
+        view.node_tree = group
+        sky_view = groups().sky_view
+        tree.links.new(view.outputs[groups().OUTPUT_RADIANCE], view_background.inputs["Color"])
+        tree.links.new(view.outputs[sky_view.OUTPUT_EXACT], band.inputs["Fac"])
+        tree.links.new(view_background.outputs["Background"], band.inputs[1])
+    elif view.node_tree != group:
+        view.node_tree = group
+    if not (band.inputs[2].is_linked and band.inputs[2].links[0].from_node == background):
+        tree.links.new(background.outputs["Background"], band.inputs[2])
+    if not (mix.inputs[2].is_linked and mix.inputs[2].links[0].from_node == band):
+        tree.links.new(band.outputs["Shader"], mix.inputs[2])
+
+
 def _lighting_tree(scene: bpy.types.Scene):
     node = _tagged(scene.world, LIGHTING_TAG) if scene.world is not None else None
     return None if node is None else node.node_tree
@@ -252,12 +313,14 @@ def _lighting_tree(scene: bpy.types.Scene):
 
 def update_sky_lighting(scene: bpy.types.Scene, features) -> None:
     """Rebuild the world's lighting group if stale for ``features`` (the dome's table is then written again by
-    :func:`write_sky_lighting_table`; the Precise one reads the frame's sky view from the baked table image) and
-    route the other rays to it (:func:`_route_other_rays`). Cheap when current."""
+    :func:`write_sky_lighting_table`; the Precise one reads the frame's sky view from the baked table image), route
+    the other rays to it (:func:`_route_other_rays`) and the camera rays through the Precise level's sky view
+    (:func:`_route_camera_rays`). Cheap when current."""
     tree = _lighting_tree(scene)
     if tree is None:
         return
     _route_other_rays(scene.world)
+    _route_camera_rays(scene.world, features)
     module = groups().sky_lighting
     if module.ensure_current(tree, features) and module.TABLE_KEY in tree:
         del tree[module.TABLE_KEY]
