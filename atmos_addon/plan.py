@@ -72,7 +72,7 @@ class SceneFacts:
     """What the plan depends on, as plain values: the scene's Atmos settings, its engine and camera, and the modes
     the file's other enabled scenes render with."""
 
-    render_mode: str = "COMPOSITOR"   #: the Mode setting (:data:`MODES`)
+    render_mode: str = "PER_PIXEL"    #: the Mode setting (:data:`MODES`)
     quality: str = "PRECISE"          #: the Quality setting (:data:`QUALITIES`)
     auto_level: str = "fast"          #: Auto's last choice (:data:`LEVELS`)
     engine: str = "CYCLES"            #: ``scene.render.engine``

@@ -87,6 +87,8 @@ def test_features_and_keys():
         SceneFacts(quality="BALANCED")
     assert plan_for(SceneFacts(quality="FAST")).aerial_key == "rayleigh+mie+abs"
     assert plan_for(SceneFacts()).aerial_key == "rayleigh+mie+abs+precise", "the default is the complete model"
+    default = plan_for(SceneFacts())   # ... evaluated once per pixel: at the cost of Blender's own sky (issue 28)
+    assert (default.mode, default.compositor, default.surface_modes) == ("PER_PIXEL", "PER_PIXEL", ("PER_PIXEL",))
     assert plan_for(SceneFacts(quality="PRECISE", absorption=False)).aerial_key == "rayleigh+mie+precise"
 
 

@@ -45,8 +45,8 @@ TABLES_SCRIPT = REPO_ROOT / "tools" / "bench_tables.py"
 RENDER_CONFIGS = (
     ("off", "plain world, no Atmos"),
     ("off-sky-texture", "Blender's Sky Texture, no aerial perspective"),
-    ("precise", "Atmos default (Compositor, Precise, multiple scattering)"),
-    ("precise-per-pixel", "Atmos Per Pixel, Precise, multiple scattering"),
+    ("precise-per-pixel", "Atmos default (Per Pixel, Precise, multiple scattering)"),
+    ("precise", "Atmos Compositor, Precise, multiple scattering"),
     ("fast", "Atmos Compositor, Fast"),
     ("fast-per-pixel", "Atmos Per Pixel, Fast"),
 )
@@ -277,8 +277,8 @@ perspective: what an artist renders without Atmos.
 
 ## Animation and interaction
 
-`tools/bench_animation.py`: the valley at Atmos's default (Precise, multiple scattering), its sun keyed from
-30 to 2 deg and its camera from 2 to 300 m up and 2 km north; Python wall time in background mode.
+`tools/bench_animation.py`: the valley at Atmos's default (Per Pixel, Precise, multiple scattering), its sun
+keyed from 30 to 2 deg and its camera from 2 to 300 m up and 2 km north; Python wall time in background mode.
 
 {animation}
 

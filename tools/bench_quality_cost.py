@@ -4,12 +4,12 @@
     .venv/bpy-5.2.3/bin/python tools/bench_quality_cost.py [--engines cycles,eevee] [--resolution 320x180]
         [--samples 64] [--repeats 3] [--decompose] [--only off,fast-per-pixel-aerial-only,...]
 
-Method. The valley (``atmos_addon/sample_scenes/valley.py``) is built once and rendered in Compositor mode (the mode both
-engines share) with ``api.enable(scene, preset, quality=...)``: "off" is the effect disabled (the valley's
-plain world), "fast" and "precise" the two levels (Balanced, measured here until December 2026, was retired).
-Cycles renders on the CPU with ``samples`` samples, adaptive sampling off, a fixed seed and denoising off; Eevee
-with ``samples`` TAA samples. Each repeat renders the three configurations once, the order rotated from one repeat to the
-next (slow drift of the machine falls on all alike). Before the repeats each configuration renders once
+Method. The valley (``atmos_addon/sample_scenes/valley.py``) is built once and rendered in Compositor mode (or
+Per Pixel: "-per-pixel") with ``api.enable(scene, preset, quality=...)``: "off" is the effect disabled (the
+valley's plain world), "fast" and "precise" the two levels (Balanced, measured here until December 2026, was
+retired). Cycles renders on the CPU with ``samples`` samples, adaptive sampling off, a fixed seed and denoising
+off; Eevee with ``samples`` TAA samples. Each repeat renders the configurations once, the order rotated from one
+repeat to the next (slow drift of the machine falls on all alike). Before the repeats each configuration renders once
 untimed: Cycles loads its kernels, Eevee compiles the configuration's shaders (reported apart: the first
 render of each configuration). Switching the level changes the tree and Eevee compiles again (its cache did
 not always serve: 47 s instead of 14 s was seen), so in Eevee every timed render follows an untimed one of the
@@ -25,14 +25,14 @@ like "fast-aerial-only". "precise-sky-lit" and "precise-per-pixel-sky-lit" are t
 non-camera rays relinked to the camera's Precise sky (what they saw before the Precise sky view of December 2026):
 the A/B of the lighting group. "precise-per-pixel-camera-sky-flat" and "precise-per-pixel-lighting-flat" give
 the camera's rays, or all the others, a flat colour instead of the Atmos sky: what each of the world's groups
-costs; "precise-per-pixel-table-sky" gives the camera's rays the table's own Precise sky everywhere, as before the
-camera sky view (the A/B of the "Atmos Sky View" group). Before the sky view (December 2026, Blender 5.2.3,
-``--engines cycles --repeats 3 --only off,off-sky-texture,precise-per-pixel,precise-per-pixel-camera-sky-flat,
-precise-per-pixel-lighting-flat``): Per Pixel Precise 3.63 s, camera sky flat 2.78 s, lighting flat 3.27 s, off
-1.93 s, Blender's Sky Texture 2.81 s: the camera's sky 0.85 s, the sky's light 0.36 s, where Blender's whole sky
-costs 0.88 s. With it (``--engines cycles --repeats 2 --only off,off-sky-texture,precise-per-pixel,
-precise-per-pixel-table-sky,precise-per-pixel-camera-sky-flat``): Per Pixel Precise 3.12 s (1.10x Blender's sky),
-with the table's sky for the camera 3.67 s, camera sky flat 2.78 s: the camera's sky 0.34 s.
+costs; "precise-per-pixel-table-sky" and "precise-table-sky" give the camera's rays the table's own Precise sky
+everywhere, as before the camera sky view (the A/B of the "Atmos Sky View" group). Before the sky view
+(December 2026, Blender 5.2.3, ``--engines cycles --repeats 3 --only off,off-sky-texture,precise-per-pixel,
+precise-per-pixel-camera-sky-flat,precise-per-pixel-lighting-flat``): Per Pixel Precise 3.63 s, camera sky flat
+2.78 s, lighting flat 3.27 s, off 1.93 s, Blender's Sky Texture 2.81 s: the camera's sky 0.85 s, the sky's light
+0.36 s, where Blender's whole sky costs 0.88 s. With it (``--repeats 2 --only off,off-sky-texture,
+precise-per-pixel,precise-per-pixel-table-sky,precise-per-pixel-camera-sky-flat``): Per Pixel Precise 3.12 s
+(1.10x Blender's sky), with the table's sky for the camera 3.67 s, camera sky flat 2.78 s: the camera's sky 0.34 s.
 "off-sky-texture" is the effect off with Blender's own Sky Texture (multiple scattering in 5.0, Nishita in 4.x,
 at the valley's sun) feeding the valley world's Background: what an artist would render without Atmos, whose sky
 replaces the world; the table gives the ratio to it as well as to the plain world's "off".
@@ -98,7 +98,8 @@ def build(args: argparse.Namespace, engine: str):
 DECOMPOSED = ("fast-sky-only", "fast-aerial-only", "fast-per-pixel-aerial-only", "precise-aerial-only",
               "precise-per-pixel-aerial-only",
               "precise-sky-lit", "precise-per-pixel-sky-lit",
-              "precise-per-pixel-camera-sky-flat", "precise-per-pixel-lighting-flat", "precise-per-pixel-table-sky")
+              "precise-per-pixel-camera-sky-flat", "precise-per-pixel-lighting-flat", "precise-per-pixel-table-sky",
+              "precise-table-sky")
 #: The suffixes of the configurations whose camera rays (``-camera-sky-flat``) or other rays (``-lighting-flat``) see
 #: a flat colour instead of the Atmos sky: what each of the world's two groups costs.
 FLAT_SUFFIXES = {"-camera-sky-flat": "sky background", "-lighting-flat": "sky lighting background"}

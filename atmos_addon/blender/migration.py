@@ -27,9 +27,10 @@ from ..plan import RETIRED_BALANCED_NOTE
 #: (issue 27): the default became the complete model, Precise with multiple scattering and 300 DU of ozone; it was
 #: Fast without either. Then the channels became the solar spectrum's as Rec.709 sees it: wavelengths 648.1, 547.4,
 #: 443.1 nm (standard air's Rayleigh coefficients there) and a sun of the spectrum's colour; they were 680, 550,
-#: 440 nm and a white sun of 4.5.
-FORMER_DEFAULTS = {"quality": "FAST", "multiple_scattering": False, "ozone_column_du": 0.0,
-                   "wavelengths_nm": SEED_WAVELENGTHS_NM,
+#: 440 nm and a white sun of 4.5. Then (issue 28) the mode became Per Pixel, the complete model at the cost of
+#: Blender's own sky; it was Compositor.
+FORMER_DEFAULTS = {"render_mode": "COMPOSITOR", "quality": "FAST", "multiple_scattering": False,
+                   "ozone_column_du": 0.0, "wavelengths_nm": SEED_WAVELENGTHS_NM,
                    "rayleigh_scattering_per_km": tuple(float(v) for v in rayleigh_coefficients(SEED_WAVELENGTHS_NM)
                                                        * 1000.0),
                    "sun_irradiance_top": (SEED_SUN_IRRADIANCE_TOP,) * 3}

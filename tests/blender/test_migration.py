@@ -107,7 +107,8 @@ def _assert_the_precise_sky_view_came_in(scene) -> None:
 
 
 def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_path):
-    # December 2026 the default became Precise with multiple scattering (issue 27); it was Fast without. Blender
+    # December 2026 the default became Precise with multiple scattering (issue 27); it was Fast without (and then the
+    # mode became Per Pixel, issue 28; it was Compositor). Blender
     # writes a setting into the file only once it is set, and one never set reads as today's default, so a scene
     # saved earlier with the defaults would switch level on opening. Enabling now writes both explicitly; a file
     # without them (saved before) gets the former defaults back on load (atmos_addon.blender.migration).
@@ -125,6 +126,7 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     np.testing.assert_allclose(settings.wavelengths_nm, [648.1, 547.4, 443.1], rtol=1e-6)  # the spectral channels
     np.testing.assert_allclose(settings.sun_irradiance_top, 4.5 * SUN_TOP_RGB, rtol=1e-6)
     assert facts.plan_of(scene).level == "precise" and facts.plan_of(scene).multiple_scattering
+    assert settings.render_mode == "PER_PIXEL" and facts.plan_of(scene).mode == "PER_PIXEL"   # issue 28
     today = tmp_path / "today.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(today))
 
@@ -133,13 +135,18 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     assert (settings.quality, settings.multiple_scattering) == ("PRECISE", True)
     assert settings.ozone_column_du == pytest.approx(300.0)
 
-    settings.property_unset("ozone_column_du")  # saved by the first complete-model release: Precise, no ozone yet
+    assert settings.render_mode == "PER_PIXEL"
+
+    settings.property_unset("ozone_column_du")  # saved by the first complete-model release: Precise, no ozone yet,
+    settings.property_unset("render_mode")      # the Compositor mode
     between = tmp_path / "between.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(between))
     bpy.ops.wm.open_mainfile(filepath=str(between))
     settings = bpy.context.scene.atmos
     assert (settings.quality, settings.multiple_scattering, settings.ozone_column_du) == ("PRECISE", True, 0.0)
+    assert settings.render_mode == "COMPOSITOR" and facts.plan_of(bpy.context.scene).mode == "COMPOSITOR"
     settings.property_unset("ozone_column_du")
+    settings.property_unset("render_mode")
 
     settings.property_unset("quality")          # as a file saved before the change holds them: never set
     settings.property_unset("multiple_scattering")
@@ -160,6 +167,7 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     assert (bpy.context.scene.atmos.quality, bpy.context.scene.atmos.multiple_scattering) == ("PRECISE", True)
     assert bpy.context.scene.atmos.ozone_column_du == pytest.approx(300.0)
     np.testing.assert_allclose(bpy.context.scene.atmos.wavelengths_nm, [648.1, 547.4, 443.1], rtol=1e-6)
+    assert bpy.context.scene.atmos.render_mode == "PER_PIXEL"
 
 
 def test_a_scene_saved_at_the_retired_balanced_level_opens_at_fast(addon, tmp_path, capsys):
