@@ -17,9 +17,9 @@ linearly to 0 at :data:`VIEW_ABOVE_DEG`. The world (:mod:`atmos_addon.blender.ap
 it in a Mix Shader, which Cycles skips a branch of where the weight is 0 or 1: the sky at and below the horizon (where
 a 2 m camera's ground path shrinks from 5 km to 1 km within 0.05 deg, and where a far surface's haze must meet the
 sky behind it, the seamless horizon) is the table's as before, the rest costs two lookups. Measured against the
-table's sky above the band (``tests/physics/test_precise.py``): 0.04-0.08 % mean luminance difference, under 1 % at
-the 99th percentile, over four presets; each is about 1 % from the brute-force sky. Eevee keeps the table's sky
-everywhere (its world output is the "All" one; its Linear lookups filter with mipmaps).
+table's sky above the band (``tests/physics/test_precise.py``): 0.05-0.10 % mean luminance difference, 0.2-1.0 %
+at the 99th percentile, over four presets; the table's sky is about 1 % from the brute-force sky. Eevee keeps the
+table's sky everywhere (its world output is the "All" one; its Linear lookups filter with mipmaps).
 """
 
 from __future__ import annotations

@@ -85,17 +85,24 @@ def mesh_object(name: str, *mats, half_size: float | None = None):
 # -- material injection ------------------------------------------------------------------------
 
 
-def test_enable_disable_restores_the_user_material_exactly() -> None:
+#: The AOVs each mode's materials write, in the order the view layer declares them.
+MODE_AOVS = {"COMPOSITOR": ["atmos_transmittance", "atmos_inscattering", "atmos_coverage"],
+             "PER_PIXEL": ["atmos_view", "atmos_coverage", "atmos_distance"]}
+
+
+@pytest.mark.parametrize("mode", ["PER_PIXEL", "COMPOSITOR"])
+def test_enable_disable_restores_the_user_material_exactly(mode) -> None:
     material = user_material()
     mesh_object("A", material)
     before = snapshot(material.node_tree)
+    bpy.context.scene.atmos.render_mode = mode
     report = orchestrator.enable_effect(bpy.context.scene)
     assert report.managed == ["User"]
     added = materials.atmos_nodes(material)
     assert len(added) == 1 and added[0].node_tree.name == materials.SURFACE_GROUP
     assert len(material.node_tree.nodes) == len(before[0]) + 1
     aovs = {n.aov_name for n in added[0].node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"}
-    assert aovs == {"atmos_transmittance", "atmos_inscattering", "atmos_coverage"}
+    assert aovs == set(MODE_AOVS[mode])
     user_part = [n for n in snapshot(material.node_tree)[0] if n[0] != added[0].name]
     assert user_part == before[0], "injection must not move or change the user's nodes"
     orchestrator.disable_effect(bpy.context.scene)
@@ -139,20 +146,23 @@ def test_skipped_materials_and_bare_objects_are_reported(tmp_path: Path) -> None
     assert uses_nodes or not materials.is_injected(plain)
 
 
-def test_enable_disable_enable_is_idempotent() -> None:
+@pytest.mark.parametrize("mode", ["PER_PIXEL", "COMPOSITOR"])
+def test_enable_disable_enable_is_idempotent(mode) -> None:
     material = user_material()
     mesh_object("A", material)
     scene = bpy.context.scene
+    scene.atmos.render_mode = mode
     orchestrator.enable_effect(scene)
+    bpy.context.view_layer.update()   # Per Pixel: the group node's driven inputs hold their values once evaluated
     first = snapshot(material.node_tree), snapshot(compositor.current_tree(scene))
     orchestrator.enable_effect(scene)
+    bpy.context.view_layer.update()
     assert (snapshot(material.node_tree), snapshot(compositor.current_tree(scene))) == first
     orchestrator.disable_effect(scene)
     orchestrator.enable_effect(scene)
     assert snapshot(material.node_tree)[1] == first[0][1]
     assert {n[0] for n in snapshot(material.node_tree)[0]} == {n[0] for n in first[0][0]}
-    assert [a.name for a in scene.view_layers[0].aovs] == ["atmos_transmittance", "atmos_inscattering",
-                                                          "atmos_coverage"]
+    assert [a.name for a in scene.view_layers[0].aovs] == MODE_AOVS[mode]
 
 
 def test_material_added_after_enabling_is_picked_up() -> None:
@@ -308,6 +318,7 @@ def _parity(engine: str, tolerance: float, tmp_path: Path) -> dict:
     for name, radiance, distance, column, row in PLANES:
         _emissive_plane(name, radiance, distance, column, row)
     scene.atmos.sky_enabled = False  # the user's plain world must pass through untouched (the sky: test_sky_sun)
+    scene.atmos.render_mode = "COMPOSITOR"   # its per-sample passes (Per Pixel: test_per_pixel_mode_composites...)
     orchestrator.enable_effect(scene)
     aovs = {}
     for label, rotation in (("high", (math.radians(30), 0, math.radians(40))), ("low", (math.radians(80), 0, 2.5))):
@@ -457,6 +468,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     removes the drivers, the groups and the AOVs."""
     scene = bpy.context.scene
     scene.atmos.quality = "FAST"   # the driver count below is the Fast level's
+    scene.atmos.render_mode = "COMPOSITOR"
     user = user_material()
     mesh_object("Thing", user)
     before = _compositor_state(scene)
@@ -479,6 +491,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     other = bpy.data.scenes.new("Other")   # a second enabled scene in the Compositor mode: the group holds both
     other.camera = scene.camera
     other.collection.objects.link(bpy.data.objects["Thing"])
+    other.atmos.render_mode = "COMPOSITOR"
     orchestrator.enable_effect(other)
     assert {n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV"} == {
         "atmos_coverage", "atmos_distance", "atmos_view", "atmos_transmittance", "atmos_inscattering"}
@@ -495,6 +508,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
                                                                  "atmos_inscattering"}
     animation = compositor.current_tree(scene).animation_data
     assert animation is None or not animation.drivers
+    assert "Atmos Aerial Composite (Per Pixel)" not in bpy.data.node_groups   # unused now: not left in the file
     scene.atmos.render_mode = "PER_PIXEL"
     orchestrator.disable_effect(scene)
     assert _compositor_state(scene) == before or not compositor.GROUP_API

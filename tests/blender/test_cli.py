@@ -168,7 +168,7 @@ def test_apply_with_a_quality_level(workdir: Path) -> None:
     assert proc.returncode == 0, proc.stderr[-3000:]
     from atmos_addon.physics.quality import Level, level_summary   # the level's measured error and cost
 
-    assert f"atmos: Fast: {level_summary(Level.FAST, True, 'COMPOSITOR')}" in proc.stderr
+    assert f"atmos: Fast: {level_summary(Level.FAST, True, 'PER_PIXEL')}" in proc.stderr
     proc = run_cli("apply", str(workdir / "camera.blend"), "--preset", "clear", "--quality", "balanced",
                    "--output", str(workdir / "balanced.blend"), cwd=workdir)
     assert proc.returncode == 2 and "the Balanced quality level was retired" in proc.stderr, proc.stderr[-3000:]

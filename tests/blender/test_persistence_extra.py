@@ -39,9 +39,11 @@ def _mesh_object(name: str, material=None, scene=None):
     return obj
 
 
-def _enabled_scene(n_materials: int = 2, sky: bool = True, quality: str | None = None):
-    """A sun, a world and ``n_materials`` objects, enabled at the default quality or at ``quality``."""
+def _enabled_scene(n_materials: int = 2, sky: bool = True, quality: str | None = None, mode: str = "COMPOSITOR"):
+    """A sun, a world and ``n_materials`` objects, enabled at the default quality or at ``quality``, in ``mode``
+    (the Compositor mode by default here: most tests below edit its shader group, "Atmos Aerial Perspective")."""
     scene = bpy.context.scene
+    scene.atmos.render_mode = mode
     if quality is not None:
         scene.atmos.quality = quality
     lamp = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
@@ -68,15 +70,18 @@ def _a_math_input(tree):
 # -- hand edits inside the groups ------------------------------------------------------------------
 
 
-def test_fresh_groups_are_stamped_and_not_reported_as_edited() -> None:
-    _enabled_scene()
-    assert group_integrity.PER_PIXEL not in bpy.data.node_groups   # only while a scene uses the Per Pixel mode
-    for name in (group_integrity.AERIAL, group_integrity.SKY, group_integrity.SURFACE):
+@pytest.mark.parametrize("mode", ["PER_PIXEL", "COMPOSITOR"])
+def test_fresh_groups_are_stamped_and_not_reported_as_edited(mode) -> None:
+    _enabled_scene(mode=mode)
+    absent, evaluating = ((group_integrity.AERIAL, group_integrity.PER_PIXEL) if mode == "PER_PIXEL"
+                          else (group_integrity.PER_PIXEL, group_integrity.AERIAL))
+    assert absent not in bpy.data.node_groups   # each only while a scene uses its mode
+    for name in (evaluating, group_integrity.SKY, group_integrity.SURFACE, "Atmos Sky View"):
         tree = bpy.data.node_groups[name]
         assert tree.get(group_integrity.FINGERPRINT_KEY) == group_integrity.fingerprint(tree), name
     assert group_integrity.edited_groups(force=True) == []
     # moving nodes (layout) is no edit
-    bpy.data.node_groups[group_integrity.AERIAL].nodes[0].location.x += 300.0
+    bpy.data.node_groups[evaluating].nodes[0].location.x += 300.0
     bpy.context.view_layer.update()
     assert group_integrity.edited_groups() == []
 
@@ -126,10 +131,7 @@ def test_the_per_pixel_compositor_group_is_watched_and_reset_keeps_the_mode() ->
     """Per Pixel mode: an edit inside its compositor group is reported; Reset rebuilds it at the scene's level
     (Fast, not the default Precise), and the surface group with the Per Pixel outputs it was built for, not the
     Compositor mode's."""
-    scene = bpy.context.scene
-    scene.atmos.render_mode = "PER_PIXEL"
-    scene.atmos.quality = "FAST"
-    _enabled_scene()
+    _enabled_scene(quality="FAST", mode="PER_PIXEL")
     per_pixel = bpy.data.node_groups[group_integrity.PER_PIXEL]
     surface = bpy.data.node_groups[group_integrity.SURFACE]
     aovs_before = sorted(n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV")

@@ -27,8 +27,11 @@ pytestmark = pytest.mark.usefixtures("addon")
 
 
 def _scene(camera_z: float = 2.0, far: float = 3000.0):
-    """A camera ``camera_z`` units up looking along +Y, a sun lamp, and a ground plane reaching ``far`` units."""
+    """A camera ``camera_z`` units up looking along +Y, a sun lamp, and a ground plane reaching ``far`` units; the
+    Compositor mode, whose per-sample shader group ("Atmos Aerial Perspective") these tests inspect (the default Per
+    Pixel mode evaluates the same level in its compositor group: tests/blender/test_aerial_application.py)."""
     scene = bpy.context.scene
+    scene.atmos.render_mode = "COMPOSITOR"
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     camera.location = (0.0, 0.0, camera_z)
     camera.rotation_euler = (math.radians(85.0), 0.0, 0.0)

@@ -191,6 +191,7 @@ def test_save_and_reopen_keeps_the_effect_and_load_post_resyncs(tmp_path: Path) 
                 else getattr(scene.atmos, name)
                 for name in ("mie_scattering_per_km", "distance_scale", "rayleigh_scattering_per_km", "mie_g")}
     injected = {m.name: snapshot(m.node_tree) for m in mats}
+    bpy.context.view_layer.update()   # the Per Pixel group node's driven inputs hold their values once evaluated
     composited = compositor_state(scene)
     params = parameters(scene)
     assert set(params) == set(PARAMETERS)
@@ -210,8 +211,8 @@ def test_save_and_reopen_keeps_the_effect_and_load_post_resyncs(tmp_path: Path) 
         (node,) = materials.atmos_nodes(material)
         assert node.node_tree.name == materials.SURFACE_GROUP
         aovs = {n.aov_name for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"}
-        assert aovs == {plan.AOV_TRANSMITTANCE, plan.AOV_INSCATTERING, plan.AOV_COVERAGE}
-    assert [a.name for a in scene.view_layers[0].aovs] == [n for n, _ in plan.AOVS["COMPOSITOR"]]
+        assert aovs == {name for name, _ in plan.AOVS["PER_PIXEL"]}   # the default mode's
+    assert [a.name for a in scene.view_layers[0].aovs] == [n for n, _ in plan.AOVS["PER_PIXEL"]]
     assert compositor_state(scene) == composited
     assert compositor.STATE_KEY in scene
     reloaded = parameters(scene)
@@ -370,7 +371,7 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
     assert image.packed_file is not None and tuple(image.size) == (DEFAULT_SHAPE.width, 3 * precise_nodes.ALTITUDES)
     session = {}
     from atmos_addon.nodes import stamps
-    for kind in (stamps.AERIAL, stamps.SKY):   # both read two keys per lookup
+    for kind in (stamps.PER_PIXEL, stamps.SKY, stamps.SKY_VIEW):   # the default Per Pixel mode's: all read two keys
         assert "+blend" in bpy.data.node_groups[kind.name][stamps.FEATURES_KEY], kind.name
     for frame, row, weight in ((1, 0, 0.0), (2, 1, 0.0), (3, 1, 1.0)):
         scene.frame_set(frame)
@@ -473,7 +474,7 @@ def test_every_view_layer_gets_the_atmosphere_and_disable_restores_them() -> Non
     orchestrator.enable_effect(scene)
     for layer in scene.view_layers:
         names = {aov.name for aov in layer.aovs}
-        assert {name for name, _ in plan.AOVS["COMPOSITOR"]} <= names, layer.name
+        assert {name for name, _ in plan.AOVS["PER_PIXEL"]} <= names, layer.name   # the default mode's
     render_layers = [n for n in tree.nodes if n.bl_idname == "CompositorNodeRLayers"]
     assert len(render_layers) == 2
     for node in render_layers:

@@ -138,7 +138,7 @@ def test_undo_and_redo_walk_back_and_forth_through_every_kind_of_change() -> Non
     step("sun moved", move_sun(60.0, 40.0))
     step("quality Fast", settings(quality="FAST"))   # from the default, Precise
     step("sun moved again", move_sun(75.0, 10.0))
-    step("mode Per Pixel", settings(render_mode="PER_PIXEL"))
+    step("mode Compositor", settings(render_mode="COMPOSITOR"))   # from the default, Per Pixel
     step("preset overcast", lambda: bpy.ops.atmos.preset_apply("EXEC_DEFAULT", False, name="overcast"))
     step("quality Auto", settings(quality="AUTO"))
     step("mode In-Render", settings(render_mode="IN_RENDER"))
@@ -153,7 +153,7 @@ def test_undo_and_redo_walk_back_and_forth_through_every_kind_of_change() -> Non
         assert_states_equal(state(scene), want, f"undo to '{message}'")
         if scene.atmos.enabled:
             sun_consistent(scene)
-        assert orphan_groups() == []
+        assert orphan_groups() == [], f"undo to '{message}'"
     for message, want in states[1:]:
         scene = redo()
         assert_states_equal(state(scene), want, f"redo to '{message}'")

@@ -649,8 +649,8 @@ def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
 def test_the_camera_sky_view_is_the_table_sky_above_the_horizon(preset):
     """The camera sky view (two lookups, the Mie phase exact) against the table's own sky (``sky_from_tile``) above
     the band at the horizon where the world keeps the latter: luminance within 0.15 % on average and 1.5 % at the
-    99th percentile (measured 0.04-0.08 % and 0.2-0.8 %); each is about 1 % from the brute-force sky. Within 3 deg
-    of the sun (the aureole) 0.1 % at a 20 deg sun and 1.3 % at a 1 deg one, where the lighting's sky view, its phase
+    99th percentile (measured 0.05-0.10 % and 0.2-1.0 %); each is about 1 % from the brute-force sky. Within 3 deg
+    of the sun (the aureole) 0.1 % at a 20 deg sun and 0.1-1.3 % at a 1 deg one, where the lighting's sky view, its phase
     function tabulated, is 0.7-4.8 % and 0.1-6.1 % off.
     A camera on the ground and one 1 km up, a high and a low sun."""
     atm = load(preset).atmosphere
@@ -679,7 +679,10 @@ def test_the_camera_sky_view_is_the_table_sky_above_the_horizon(preset):
         table = sky_from_tile(tile, toward, sun, atm)[1] @ luminance
         view = camera_sky_from_tile(tile, toward, sun, atm) @ luminance
         limit = 2e-3 if sun_deg > 10.0 else 2e-2   # a 1 deg sun's aureole lies within 3 deg of the band
-        assert np.max(np.abs(view - table) / table) < limit, label
+        aureole = np.max(np.abs(view - table) / table)
+        assert aureole < limit, label
+        print(f"\n{label}: mean {error.mean():.2e}, 99th percentile {np.percentile(error, 99):.2e}, "
+              f"within 3 deg of the sun {aureole:.2e}")
 
 
 def test_the_camera_sky_view_rows_and_blend():

@@ -322,6 +322,8 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
             tree.links.new(combine.outputs["Image"], target)
     scene.render.use_compositing = True
     scene[STATE_KEY] = state
+    if installed == "PER_PIXEL" and not per_pixel:   # left for the Compositor mode: its group, unless in use
+        nodes.registry.remove_unused((nodes.stamps.PER_PIXEL,))
     return messages
 
 
