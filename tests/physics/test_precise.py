@@ -649,10 +649,10 @@ def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
 def test_the_camera_sky_view_is_the_table_sky_above_the_horizon(preset):
     """The camera sky view (two lookups, the Mie phase exact) against the table's own sky (``sky_from_tile``) above
     the band at the horizon where the world keeps the latter: luminance within 0.15 % on average and 1.5 % at the
-    99th percentile (measured 0.05-0.10 % and 0.2-1.0 %); each is about 1 % from the brute-force sky. Within 3 deg
-    of the sun (the aureole) 0.1 % at a 20 deg sun and 0.1-1.3 % at a 1 deg one, where the lighting's sky view, its phase
-    function tabulated, is 0.7-4.8 % and 0.1-6.1 % off.
-    A camera on the ground and one 1 km up, a high and a low sun."""
+    99th percentile (measured 0.05-0.10 % and 0.2-1.0 %); the table's sky is about 1 % from the brute-force sky.
+    Within 3 deg of the sun (the aureole, which the Mie phase function evaluated in the shader keeps sharp) 0.1 % at
+    a 20 deg sun and 0.1-1.3 % at a 1 deg one. A camera on the ground and one 1 km up, a high and a low sun; the
+    test prints what it measures."""
     atm = load(preset).atmosphere
     rng = np.random.default_rng(11)
     luminance = np.array([0.2126, 0.7152, 0.0722])
