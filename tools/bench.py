@@ -127,6 +127,14 @@ def run_one(python: str, args: argparse.Namespace) -> dict:
 SIGNAL_ATTEMPTS = 3
 
 
+class ScriptFailed(SystemExit):
+    """A bench script that failed (after :data:`SIGNAL_ATTEMPTS` runs when killed by a signal): its exit status."""
+
+    def __init__(self, message: str, returncode: int) -> None:
+        super().__init__(message)
+        self.returncode = returncode
+
+
 def run_json_script(script: Path, arguments: list[str]) -> dict:
     """Run ``script`` with this interpreter and ``arguments`` plus ``--json FILE``; the JSON it wrote. A run killed by
     a signal is run again (:data:`SIGNAL_ATTEMPTS` in all), and says so."""
@@ -141,35 +149,56 @@ def run_json_script(script: Path, arguments: list[str]) -> dict:
             print(f"== killed by signal {-result.returncode}: run again ({attempt + 1} of {SIGNAL_ATTEMPTS})",
                   flush=True)
         if result.returncode != 0 or not path.exists():
-            raise SystemExit(f"bench failed: {' '.join(command)} (exit {result.returncode}):\n"
-                             f"{result.stdout[-3000:]}\n{result.stderr[-3000:]}")
+            raise ScriptFailed(f"bench failed: {' '.join(command)} (exit {result.returncode}):\n"
+                               f"{result.stdout[-3000:]}\n{result.stderr[-3000:]}", result.returncode)
         return json.loads(path.read_text())
 
 
 def render_part(repeats: int, eevee_repeats: int) -> list[dict]:
-    """The render cost runs of :data:`RENDER_RUNS`."""
+    """The render cost runs of :data:`RENDER_RUNS`. Eevee's may fail (Mesa's llvmpipe segfaulted in every one of
+    three attempts in one run, December 2026): it is then reported as failed instead of losing the whole bench."""
     configs = ",".join(config for config, _ in RENDER_CONFIGS)
-    return [run_json_script(RENDER_SCRIPT, ["--engines", engine, *extra, "--only", configs, "--repeats",
-                                            str(repeats if engine == "cycles" else eevee_repeats)])
-            for engine, extra in RENDER_RUNS]
+    runs = []
+    for engine, extra in RENDER_RUNS:
+        arguments = ["--engines", engine, *extra, "--only", configs, "--repeats",
+                     str(repeats if engine == "cycles" else eevee_repeats)]
+        try:
+            runs.append(run_json_script(RENDER_SCRIPT, arguments))
+        except ScriptFailed as failure:
+            if engine == "cycles":
+                raise
+            print(failure, flush=True)
+            why = (f"killed by signal {-failure.returncode} in {SIGNAL_ATTEMPTS} attempts" if failure.returncode < 0
+                   else f"exit status {failure.returncode}")
+            runs.append({"engine": engine, "failed": why, "arguments": list(extra)})
+    return runs
 
 
 def render_markdown(runs: list[dict], repeats: int, eevee_repeats: int) -> str:
-    by = {(row["engine"], row["config"]): row for run in runs for row in run["rows"]}
-    engines = [(run["rows"][0]["engine"], run) for run in runs]
-    head = "| configuration | " + " | ".join(
-        f"{engine.capitalize()} {run['resolution'][0]}x{run['resolution'][1]}, {run['samples']} samples | vs "
-        f"Blender's sky" for engine, run in engines) + " |"
-    lines = [head, "|---|" + "---:|---:|" * len(engines)]
+    by = {(row["engine"], row["config"]): row for run in runs for row in run.get("rows", ())}
+    engines = [(run["rows"][0]["engine"] if "rows" in run else run["engine"], run) for run in runs]
+
+    def heading(engine: str, run: dict) -> str:
+        if "failed" in run:
+            return f"{engine.capitalize()} {' '.join(run['arguments'])} | vs Blender's sky"
+        return (f"{engine.capitalize()} {run['resolution'][0]}x{run['resolution'][1]}, {run['samples']} samples | "
+                f"vs Blender's sky")
+
+    lines = ["| configuration | " + " | ".join(heading(engine, run) for engine, run in engines) + " |",
+             "|---|" + "---:|---:|" * len(engines)]
     for config, label in RENDER_CONFIGS:
         cells = []
         for engine, _ in engines:
-            row = by[(engine, config)]
-            cells += [f"{row['median_s']:.2f} s", f"{row['ratio_sky_texture']:.2f}x"]
+            row = by.get((engine, config))
+            cells += (["failed", "-"] if row is None
+                      else [f"{row['median_s']:.2f} s", f"{row['ratio_sky_texture']:.2f}x"])
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    blender = next(run["blender"] for run in runs if "blender" in run)
+    failed = "".join(f" {engine.capitalize()} failed in this run: {run['failed']}." for engine, run in engines
+                     if "failed" in run)
     return "\n".join(lines) + (f"\n\nMedians of {repeats} interleaved Cycles repeats and {eevee_repeats} Eevee "
-                               f"repeat(s) (Blender {runs[0]['blender']}); target for Atmos's default: at most "
-                               f"{RENDER_TARGET:.2f}x Blender's sky.")
+                               f"repeat(s) (Blender {blender}); target for Atmos's default: at most "
+                               f"{RENDER_TARGET:.2f}x Blender's sky.{failed}")
 
 
 def animation_markdown(result: dict) -> str:
