@@ -268,6 +268,7 @@ def enable_effect(scene) -> Report:
         # Before the materials: the groups link the table image as they are built. Pointing a group that 5000
         # materials already use at a new image re-evaluates every one of them (3.4 s of a 5000-material enable).
         bake_tables(scene)
+        plan = facts.plan_of(scene)   # the bake decides the blend of key tiles: the groups below are built for it
     report = _apply_materials(scene, only_new=True)
     if plan.compositor is not None:
         report.messages.extend(compositor.install(scene, evaluation=plan.compositor,

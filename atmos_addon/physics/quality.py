@@ -84,15 +84,16 @@ DAY_ERROR_PCT = {
     (Level.PRECISE, True): (1, 2),
 }
 #: Render time against Blender's own Sky Texture alone (its sky and no aerial perspective), the sample valley in
-#: Cycles: docs/quality.md "Cost" (``tools/bench_quality_cost.py --engines cycles --repeats 5 --decompose``,
-#: Blender 5.2.3, December 2026, with the Precise sky view). In-Render mode was not part of that bench.
+#: Cycles: docs/benchmarks.md (``./run bench``, Blender 5.2.3, December 2026, with the camera sky view: medians of 3
+#: interleaved repeats); Balanced's from docs/quality.md "Cost" (``tools/bench_quality_cost.py --engines cycles
+#: --repeats 5 --decompose``, before its retirement). In-Render mode was not part of either bench.
 RENDER_COST_VS_SKY = {
-    (Level.FAST, "COMPOSITOR"): 1.26,
-    (Level.FAST, "PER_PIXEL"): 1.08,
+    (Level.FAST, "COMPOSITOR"): 1.20,
+    (Level.FAST, "PER_PIXEL"): 1.03,
     (Level.BALANCED, "COMPOSITOR"): 1.85,
     (Level.BALANCED, "PER_PIXEL"): 1.14,
-    (Level.PRECISE, "COMPOSITOR"): 1.88,
-    (Level.PRECISE, "PER_PIXEL"): 1.27,
+    (Level.PRECISE, "COMPOSITOR"): 1.75,
+    (Level.PRECISE, "PER_PIXEL"): 1.05,
 }
 
 

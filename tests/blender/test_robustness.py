@@ -353,7 +353,7 @@ def _three_frames_of_a_setting_sun(scene, *, climbing_camera: bool) -> None:
     scene.frame_set(1)
 
 
-def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Path) -> None:
+def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Path, monkeypatch) -> None:
     """Precise with a camera climbing 0 -> 3 km and a sun setting over 3 frames: each frame moves more than a key
     step, so each is a key tile in the packed image, the groups blend two keys by the keyed weight (frame 3 is the
     second segment's end: weight 1), and a process without the add-on renders every frame as the session did (max
@@ -362,11 +362,18 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
     from atmos_addon.nodes.parameters import PRECISE_SCALE, PRECISE_TILE
     from atmos_addon.physics.precise import DEFAULT_SHAPE
 
+    from atmos_addon.nodes import per_pixel
+
     scene = bpy.context.scene
     scene.atmos.quality = "PRECISE"
     _three_frames_of_a_setting_sun(scene, climbing_camera=True)
+    builds = []
+    build = per_pixel.build_per_pixel_composite
+    monkeypatch.setattr(per_pixel, "build_per_pixel_composite",
+                        lambda tree, features, *args: builds.append(features.blend) or build(tree, features, *args))
     report = orchestrator.enable_effect(scene)
     assert any("baked 3 table tiles" in message for message in report.messages), report.messages
+    assert builds == [True]   # built once, for the key tiles' blend (1.2-1.6 s a build: not first without it)
     image = bpy.data.images[precise_nodes.IMAGE_NAME]
     assert image.packed_file is not None and tuple(image.size) == (DEFAULT_SHAPE.width, 3 * precise_nodes.ALTITUDES)
     session = {}
