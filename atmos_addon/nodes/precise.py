@@ -151,6 +151,37 @@ def azimuth_from_sun(g: GraphBuilder, vx: Socket, vy: Socket, sx: Socket, sy: So
     return g.arctan2(cross, dot, label="azimuth from the sun")
 
 
+class _ViewLookup:
+    """What both sky views read per ray: the view's zenith cosine v_z, the column of its azimuth from the sun, the
+    tile's texel origin, the atlas size and sin(dip) = sqrt(h_c (2 R + h_c)) / (R + h_c) (the horizon's zenith
+    cosine is -sin(dip)); and their filtered lookups, blended with the next key tile's with ``blend``."""
+
+    def __init__(self, g: GraphBuilder, view: Socket, sun: Socket, blend: bool, label: str) -> None:
+        self.g = g
+        vx, vy, self.vz = g.separate(view, label="v")
+        sx, sy, _ = g.separate(sun, label="l")
+        self.x0, self.y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"),
+                                           label="tile (x0, y0, h_c)")
+        self.width, self.height, _ = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"),
+                                                label="atlas (W, H)")
+        radius = g.attribute(parameters.PLANET_RADIUS, output="Fac")
+        ground_term = g.mul(h_c, g.multiply_add(radius, 2.0, h_c), label="h_c (2 R + h_c)")
+        self.sin_dip = g.div(g.sqrt(ground_term), g.add(radius, h_c), label="sin(dip) = -z_h")
+        self.column = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (DEFAULT_SHAPE.sky_azimuths - 1) / math.pi,
+                            label=f"{label} column")
+        self.mixer = KeyBlend(g, self.height) if blend else None
+
+    def lookup(self, x: Socket, v: Socket, label: str) -> Socket:
+        """The filtered texel at column x (texel units, centres at +0.5) and texture coordinate v."""
+        g = self.g
+        u = g.div(x, self.width, label=f"u ({label})")
+        first = g.texture(table_image(), u, v, label=label)
+        if self.mixer is None:
+            return first
+        return self.mixer.mix(first, g.texture(table_image(), u, g.add(v, self.mixer.step_v),
+                                               label=f"{label}, next key"), label)
+
+
 def sky_view(g: GraphBuilder, view: Socket, sun: Socket, blend: bool = False) -> tuple[Socket, Socket]:
     """(radiance, ground transmittance) of the frame's sky view (``physics.precise.sky_view``, sampled as
     ``physics.precise.lighting_from_tile``): one filtered lookup each in the tile's sky-view block,
@@ -164,35 +195,19 @@ def sky_view(g: GraphBuilder, view: Socket, sun: Socket, blend: bool = False) ->
     (Cycles' Linear lookup; the coordinates stay within one side's texel centres, so neither the other side of the
     horizon nor a neighbouring block bleeds in). With ``blend`` each lookup is blended with the next key tile's
     (:class:`KeyBlend`; the rows follow the frame's camera altitude)."""
-    vx, vy, vz = g.separate(view, label="v")
-    sx, sy, _ = g.separate(sun, label="l")
-    x0, y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile (x0, y0, h_c)")
-    width, height, _ = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"), label="atlas (W, H)")
-    radius = g.attribute(parameters.PLANET_RADIUS, output="Fac")
-    ground_term = g.mul(h_c, g.multiply_add(radius, 2.0, h_c), label="h_c (2 R + h_c)")
-    horizon = g.div(g.sqrt(ground_term), g.add(radius, h_c), label="-z_h")   # minus the horizon's zenith cosine
-    above = g.add(vz, horizon, label="v_z - z_h")
+    ray = _ViewLookup(g, view, sun, blend, "sky view")
+    horizon = ray.sin_dip
+    above = g.add(ray.vz, horizon, label="v_z - z_h")
     k, n = DEFAULT_SHAPE.sky_ground_rows, ALTITUDES
     sky_row = g.multiply_add(g.sqrt(g.div(g.max(above, 0.0), g.add(horizon, 1.0))), float(n - 1 - k), float(k),
                              label="sky row")
     ground_row = g.multiply_add(g.sqrt(g.div(g.max(g.neg(above), 0.0), g.sub(1.0, horizon))), float(1 - k),
                                 float(k - 1), label="ground row")
     row = g.select(g.less_than(above, 0.0, label="below the horizon"), ground_row, sky_row, label="sky view row")
-    v = g.div(g.add(g.add(y0, 0.5), row), height, label="v (sky view)")
-    start = g.add(x0, DEFAULT_SHAPE.sky_view_offset + 0.5, label="sky view x0")
-    column = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (DEFAULT_SHAPE.sky_azimuths - 1) / math.pi,
-                   label="sky view column")
-    mixer = KeyBlend(g, height) if blend else None
-
-    def lookup(u: Socket, label: str) -> Socket:
-        first = g.texture(table_image(), u, v, label=label)
-        if mixer is None:
-            return first
-        return mixer.mix(first, g.texture(table_image(), u, g.add(v, mixer.step_v), label=f"{label}, next key"),
-                         label)
-
-    return (lookup(g.div(g.add(start, column), width), "sky view"),
-            lookup(g.div(g.add(start, float(DEFAULT_SHAPE.sky_azimuths)), width), "ground transmittance"))
+    v = g.div(g.add(g.add(ray.y0, 0.5), row), ray.height, label="v (sky view)")
+    start = g.add(ray.x0, DEFAULT_SHAPE.sky_view_offset + 0.5, label="sky view x0")
+    return (ray.lookup(g.add(start, ray.column), v, "sky view"),
+            ray.lookup(g.add(start, float(DEFAULT_SHAPE.sky_azimuths)), v, "ground transmittance"))
 
 
 def camera_sky_view(g: GraphBuilder, view: Socket, sun: Socket, mu: Socket,
@@ -207,32 +222,15 @@ def camera_sky_view(g: GraphBuilder, view: Socket, sun: Socket, mu: Socket,
 
     (Cycles' Linear lookup; row 0 at and below the horizon, where the world shows the table's own sky). With
     ``blend`` each lookup is blended with the next key tile's (:class:`KeyBlend`)."""
-    vx, vy, vz = g.separate(view, label="v")
-    sx, sy, _ = g.separate(sun, label="l")
-    x0, y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile (x0, y0, h_c)")
-    width, height, _ = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"), label="atlas (W, H)")
-    radius = g.attribute(parameters.PLANET_RADIUS, output="Fac")
-    ground_term = g.mul(h_c, g.multiply_add(radius, 2.0, h_c), label="h_c (2 R + h_c)")
-    horizon = g.arcsin(g.div(g.sqrt(ground_term), g.add(radius, h_c)), label="-e_h")   # minus the horizon's elevation
-    above = g.add(g.arcsin(vz, label="e"), horizon, label="e - e_h")
+    ray = _ViewLookup(g, view, sun, blend, "camera sky")
+    horizon = g.arcsin(ray.sin_dip, label="-e_h")   # minus the horizon's elevation
+    above = g.add(g.arcsin(ray.vz, label="e"), horizon, label="e - e_h")
     row = g.mul(g.sqrt(g.div(g.max(above, 0.0), g.add(horizon, 0.5 * math.pi))), float(ALTITUDES - 1),
                 label="camera sky row")
-    v = g.div(g.add(g.add(y0, 0.5), row), height, label="v (camera sky)")
-    column = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (DEFAULT_SHAPE.sky_azimuths - 1) / math.pi,
-                   label="camera sky column")
-    start = g.add(g.add(x0, column), DEFAULT_SHAPE.camera_sky_offset + 0.5, label="camera sky x")
-    mixer = KeyBlend(g, height) if blend else None
-
-    def lookup(offset: float, label: str) -> Socket:
-        u = g.div(g.add(start, offset), width, label=f"u ({label})")
-        first = g.texture(table_image(), u, v, label=label)
-        if mixer is None:
-            return first
-        return mixer.mix(first, g.texture(table_image(), u, g.add(v, mixer.step_v), label=f"{label}, next key"),
-                         label)
-
-    rayleigh = lookup(0.0, "camera sky, Rayleigh")
-    mie = lookup(float(DEFAULT_SHAPE.sky_azimuths), "camera sky, Mie")
+    v = g.div(g.add(g.add(ray.y0, 0.5), row), ray.height, label="v (camera sky)")
+    start = g.add(g.add(ray.x0, ray.column), DEFAULT_SHAPE.camera_sky_offset + 0.5, label="camera sky x")
+    rayleigh = ray.lookup(start, v, "camera sky, Rayleigh")
+    mie = ray.lookup(g.add(start, float(DEFAULT_SHAPE.sky_azimuths)), v, "camera sky, Mie")
     phase = phase_henyey_greenstein(g, mu, g.attribute(parameters.MIE_G))
     return g.multiply_add(mie, phase, rayleigh, label="camera sky"), above
 

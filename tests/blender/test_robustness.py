@@ -353,6 +353,30 @@ def _three_frames_of_a_setting_sun(scene, *, climbing_camera: bool) -> None:
     scene.frame_set(1)
 
 
+def test_an_animated_table_laid_out_by_an_older_atmos_is_baked_again_on_opening(tmp_path: Path) -> None:
+    """Key tiles are not re-baked on every edit in the UI, but a file whose table an older Atmos laid out (before the
+    camera sky view: narrower tiles, another bake key) would have the groups read the wrong columns: opening it
+    bakes the key tiles again, at today's width."""
+    from atmos_addon.nodes import precise as precise_nodes
+    from atmos_addon.physics.precise import DEFAULT_SHAPE
+
+    scene = bpy.context.scene
+    scene.atmos.quality = "PRECISE"
+    _three_frames_of_a_setting_sun(scene, climbing_camera=True)
+    orchestrator.enable_effect(scene)
+    image = bpy.data.images[precise_nodes.IMAGE_NAME]
+    del image["atmos_layout"]                       # as an older Atmos wrote it: no layout, its own key and width
+    image["atmos_bake_key"] = "an older layout's key"
+    image.scale(DEFAULT_SHAPE.width - 66, image.size[1])
+    image.pack()
+    path = tmp_path / "older.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    image = bpy.data.images[precise_nodes.IMAGE_NAME]
+    assert image["atmos_layout"] == 3 and image["atmos_bake_key"] != "an older layout's key"
+    assert tuple(image.size) == (DEFAULT_SHAPE.width, 3 * precise_nodes.ALTITUDES)
+
+
 def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Path, monkeypatch) -> None:
     """Precise with a camera climbing 0 -> 3 km and a sun setting over 3 frames: each frame moves more than a key
     step, so each is a key tile in the packed image, the groups blend two keys by the keyed weight (frame 3 is the

@@ -221,6 +221,25 @@ def _write_precise_sky(scene, sun: np.ndarray, altitude_m: float):
     return e_sun, tile
 
 
+def _table_graph_inputs(image, sun: np.ndarray, e_sun, altitude_m: float, scale=None) -> tuple[dict, dict]:
+    """What a numpy graph of the Precise world groups reads: the shader parameters as the add-on writes them for
+    ``sun``, E_sun and the tile's camera altitude (``scale``: the Precise scale (D, top, w) of a key-tile blend), and
+    the table image's pixels by name."""
+    from atmos_addon.nodes import parameters
+
+    values = parameters.shader_parameter_values(
+        beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
+        beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
+        sun_irradiance=e_sun, metres_per_unit=1.0, ground_albedo=ALBEDO, planet_radius=ATMOSPHERE.planet_radius)
+    values.update({parameters.PRECISE_TILE: (0.0, 0.0, altitude_m),
+                   parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+    if scale is not None:
+        values[parameters.PRECISE_SCALE] = scale
+    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    return values, {image.name: pixels.reshape(image.size[1], image.size[0], 4)}
+
+
 def test_precise_sky_group_counts():
     ru.reset_scene()
     for mie in (False, True):
@@ -244,8 +263,6 @@ def test_the_blending_precise_lighting_group_samples_two_key_tiles_as_the_core_b
     """The lighting group built with ``blend`` (an animated camera or sun): its numpy graph on a two-key image
     against ``physics.precise.lighting_from_tile`` of ``blend_tiles`` (the rows at the frame's camera altitude)."""
     from atmos_addon.blender.apply import precise_tables
-    from atmos_addon.nodes import parameters
-    from atmos_addon.nodes.precise import IMAGE_NAME
     from atmos_addon.physics.precise import bake_tile, blend_tiles, lighting_from_tile, shared_max_distance
 
     ru.reset_scene()
@@ -256,22 +273,13 @@ def test_the_blending_precise_lighting_group_samples_two_key_tiles_as_the_core_b
     d_max = shared_max_distance([2.0, 300.0], ATMOSPHERE)
     keys = [bake_tile(ATMOSPHERE, h, math.radians(e), max_distance_m=d_max) for h, e in ((2.0, 6.0), (300.0, 5.0))]
     image = precise_tables.write_tiles(keys)
-    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
     directions = np.random.default_rng(4).normal(size=(2000, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     weight, altitude = 0.4, 120.0
     sun = _sun(5.6, 70.0)
     e_sun = ATMOSPHERE.sun_irradiance_top * 0.5
-    values = parameters.shader_parameter_values(
-        beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
-        beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
-        sun_irradiance=e_sun, metres_per_unit=1.0, ground_albedo=ALBEDO, planet_radius=ATMOSPHERE.planet_radius)
-    values.update({parameters.PRECISE_TILE: (0.0, 0.0, altitude),
-                   parameters.PRECISE_SCALE: (d_max, ATMOSPHERE.atmosphere_height, weight),
-                   parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
-    graph = sky_lighting.evaluate_precise(features, values, view_direction=directions,
-                                          images={IMAGE_NAME: pixels.reshape(image.size[1], image.size[0], 4)})
+    values, images = _table_graph_inputs(image, sun, e_sun, altitude, (d_max, ATMOSPHERE.atmosphere_height, weight))
+    graph = sky_lighting.evaluate_precise(features, values, view_direction=directions, images=images)
     blended = blend_tiles(keys[0], keys[1], weight, altitude, ATMOSPHERE)
     expected = lighting_from_tile(blended, directions, sun, ATMOSPHERE, ALBEDO, e_sun)
     np.testing.assert_allclose(graph, expected, rtol=1e-4, atol=1e-6 * np.max(e_sun))
@@ -321,7 +329,6 @@ def test_precise_lighting_group_matches_the_sky_view():
     ``physics.precise.lighting_from_tile`` (float32; the ground lit) and its numpy graph (``evaluate_precise``), and
     within a few % of the Precise sky it tabulates (``sky_from_tile``) away from the horizon: a ground camera and one
     3 km up, a noon, a low and a twilight sun. Cycles only: Eevee never runs this group."""
-    from atmos_addon.nodes import parameters
     from atmos_addon.nodes.precise import IMAGE_NAME
     from atmos_addon.physics.precise import lighting_from_tile, sky_from_tile
     from atmos_addon.physics.sky import ground_radiance
@@ -354,16 +361,9 @@ def test_precise_lighting_group_matches_the_sky_view():
         error = _relative_error(rendered, expected)
         assert error.max() < TOLERANCE["CYCLES"], f"{label}: worst relative error {error.max():.2e}"
         worst = max(worst, float(error.max()))
-        pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-        values = parameters.shader_parameter_values(
-            beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
-            beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
-            sun_irradiance=e_sun, metres_per_unit=1.0, ground_albedo=ALBEDO, planet_radius=ATMOSPHERE.planet_radius)
-        values.update({parameters.PRECISE_TILE: (0.0, 0.0, altitude),
-                       parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+        values, images = _table_graph_inputs(image, sun, e_sun, altitude)
         graph = sky_lighting.evaluate_precise(features, values, view_direction=directions.reshape(-1, 3),
-                                              images={IMAGE_NAME: pixels.reshape(image.size[1], image.size[0], 4)})
+                                              images=images)
         np.testing.assert_allclose(graph.reshape(expected.shape), expected, rtol=1e-4, atol=1e-6 * e_sun.max())
         f_ex, light, hits = sky_from_tile(tile, directions, sun, ATMOSPHERE)
         sky = light + hits[..., None] * ground_radiance(sun, e_sun, ALBEDO) * f_ex
@@ -541,7 +541,7 @@ def test_the_camera_sky_view_group_samples_the_core_s_camera_sky_view():
     (every direction: below the horizon it reads the horizon's row) and its band weight against its formula; built
     with ``blend`` (an animated camera or sun), its graph on a two-key image against ``blend_tiles``."""
     from atmos_addon.blender.apply import precise_tables
-    from atmos_addon.nodes import parameters, sky_view, stamps
+    from atmos_addon.nodes import sky_view, stamps
     from atmos_addon.nodes.precise import IMAGE_NAME
     from atmos_addon.physics.precise import (bake_tile, blend_tiles, camera_sky_from_tile, horizon_elevation,
                                              shared_max_distance)
@@ -577,17 +577,9 @@ def test_the_camera_sky_view_group_samples_the_core_s_camera_sky_view():
         assert above.any() and (~above).any(), label
         error = _relative_error(rendered, expected)[above & off_sun]
         assert error.max() < TOLERANCE["CYCLES"], f"{label}: worst relative error {error.max():.2e}"
-        pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-        values = parameters.shader_parameter_values(
-            beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
-            beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
-            sun_irradiance=e_sun, metres_per_unit=1.0, ground_albedo=ALBEDO, planet_radius=ATMOSPHERE.planet_radius)
-        values.update({parameters.PRECISE_TILE: (0.0, 0.0, altitude),
-                       parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+        values, images = _table_graph_inputs(image, sun, e_sun, altitude)
         flat = directions.reshape(-1, 3)
-        graph, exact = sky_view.evaluate(features, values, view_direction=flat,
-                                         images={IMAGE_NAME: pixels.reshape(image.size[1], image.size[0], 4)})
+        graph, exact = sky_view.evaluate(features, values, view_direction=flat, images=images)
         np.testing.assert_allclose(graph[off_sun.ravel()], expected.reshape(-1, 3)[off_sun.ravel()], rtol=1e-4,
                                    atol=1e-6 * e_sun.max())
         height_deg = np.degrees(np.arcsin(flat[:, 2]) - horizon_elevation(altitude, ATMOSPHERE))
@@ -602,22 +594,13 @@ def test_the_camera_sky_view_group_samples_the_core_s_camera_sky_view():
     d_max = shared_max_distance([2.0, 300.0], ATMOSPHERE)
     keys = [bake_tile(ATMOSPHERE, h, math.radians(e), max_distance_m=d_max) for h, e in ((2.0, 6.0), (300.0, 5.0))]
     image = precise_tables.write_tiles(keys)
-    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
-    image.pixels.foreach_get(pixels)
     views = np.random.default_rng(4).normal(size=(2000, 3))
     views[:, 2] = np.abs(views[:, 2])
     views /= np.linalg.norm(views, axis=1, keepdims=True)
     weight, altitude, sun = 0.4, 120.0, _sun(5.6, 70.0)
-    values = parameters.shader_parameter_values(
-        beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
-        beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
-        sun_irradiance=ATMOSPHERE.sun_irradiance_top, metres_per_unit=1.0, ground_albedo=ALBEDO,
-        planet_radius=ATMOSPHERE.planet_radius)
-    values.update({parameters.PRECISE_TILE: (0.0, 0.0, altitude),
-                   parameters.PRECISE_SCALE: (d_max, ATMOSPHERE.atmosphere_height, weight),
-                   parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
-    graph, _ = sky_view.evaluate(blending, values, view_direction=views,
-                                 images={IMAGE_NAME: pixels.reshape(image.size[1], image.size[0], 4)})
+    values, images = _table_graph_inputs(image, sun, ATMOSPHERE.sun_irradiance_top, altitude,
+                                         (d_max, ATMOSPHERE.atmosphere_height, weight))
+    graph, _ = sky_view.evaluate(blending, values, view_direction=views, images=images)
     blended = blend_tiles(keys[0], keys[1], weight, altitude, ATMOSPHERE)
     off_sun = np.degrees(np.arccos(np.clip(views @ sun, -1.0, 1.0))) > 1.5
     expected = camera_sky_from_tile(blended, views, sun, ATMOSPHERE)

@@ -257,8 +257,9 @@ def _route_camera_rays(world: bpy.types.World, features) -> None:
     """Cycles' camera rays at the Precise level: above the horizon band the "Atmos Sky View" group's two lookups
     (:mod:`atmos_addon.nodes.sky_view`), within it and below the horizon the camera's Background (the "Atmos Sky"
     group), mixed by a Mix Shader on the group's Exact weight, whose other branch Cycles skips where the weight is 0
-    or 1. At the Fast level (or before the table has the camera sky view) the camera's Background directly; the
-    view's nodes are removed. Edits only when the route changes."""
+    or 1. At the Fast level the camera's Background directly; the view's nodes and its group are removed. (A table
+    baked by an older Atmos lacks the camera sky view: ``precise_tables.follow`` bakes it again.) Edits only when the
+    route changes."""
     mix = _tagged(world, MIX_TAG, "ShaderNodeMixShader")
     background = _tagged(world, BACKGROUND_TAG, "ShaderNodeBackground")
     if mix is None or background is None:
