@@ -373,8 +373,9 @@ def _add_effect_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--samples", type=_positive_int, help="render samples")
     parser.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
     parser.add_argument("--mode", choices=tuple(MODES),
-                        help="compositor (both engines: AOVs + compositor), per-pixel (both engines: the quality level "
-                             "evaluated once per pixel in the compositor, no per-sample cost) or in-render (Cycles: "
+                        help="per-pixel (both engines: the quality level evaluated once per pixel in the compositor, "
+                             "no per-sample cost; a new scene's default), compositor (both engines: evaluated per "
+                             "sample into AOVs, with the transmittance and in-scattering passes) or in-render (Cycles: "
                              "exact per ray segment, reflections and refractions included); default: the scene's "
                              "setting")
     parser.add_argument("--quality", type=_quality, metavar="{" + ",".join(QUALITY_LEVELS) + "}",
