@@ -350,10 +350,12 @@ NOTES = """## What the numbers say
   the `node_tree` write 22 us in 4.5.15, 22 us and 19 us in 5.2.3 and 5.3.0, the same with 1000 and with 5000
   materials, so an enable grows linearly with the materials.
 - **The 1 s target**: missed on every version since Precise with multiple scattering became the default
-  (December 2026): 5.0-6.4 s then, 1.2-1.4 s before the Per Pixel default, 1.5-2.1 s with it: that mode builds
-  its compositor group, 800 nodes at Precise, and every node, link and value Blender adds re-runs the tree's update
-  over the nodes already there, so the build costs 0.9 s (`tools/bench_scale.py --profile` on 5.2.3: `_feed`
-  0.29 s, `node` 0.43 s with 0.18 s of property writes; once per file and feature set). The cProfile of enable on 5.2.3
+  (December 2026): 5.0-6.4 s then, 1.2-1.4 s before the Per Pixel default, 1.5-2.1 s with it. That mode builds
+  its compositor group (396 nodes at Precise, one Math node per channel) where the Compositor mode built the
+  241-node shader group: 0.45 s against 0.10 s (`tools/bench_group_builds.py`, 5.2.3), because every node and
+  link Blender adds re-runs the tree's update over the nodes already there (a node 0.07 ms into a 100-node tree,
+  0.33 ms into 400, 3.6 ms into 1600), once per file and feature set; the rest of the spread is the machine (the
+  same code measured 1.48 s on 4.5 and 2.11 s on 5.2 in one run). The cProfile of enable on 5.2.3
   (`.venv/bpy-5.2.3/bin/python tools/bench_scale.py --profile`) showed 3.0 s in `enable_effect`'s own calls into
   Blender: the depsgraph update that reads the camera's matrix, which re-evaluated every object because the
   scene's properties had just been written, and in it the depsgraph handler's bake, whose link of the table image
