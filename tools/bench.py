@@ -180,7 +180,8 @@ def render_markdown(runs: list[dict], repeats: int, eevee_repeats: int) -> str:
 
     def heading(engine: str, run: dict) -> str:
         if "failed" in run:
-            return f"{engine.capitalize()} {' '.join(run['arguments'])} | vs Blender's sky"
+            given = dict(zip(run["arguments"][::2], run["arguments"][1::2]))
+            return f"{engine.capitalize()} {given['--resolution']}, {given['--samples']} samples | vs Blender's sky"
         return (f"{engine.capitalize()} {run['resolution'][0]}x{run['resolution'][1]}, {run['samples']} samples | "
                 f"vs Blender's sky")
 
