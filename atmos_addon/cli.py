@@ -342,7 +342,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     scene.render.resolution_x, scene.render.resolution_y = args.cell
     set_output_format(scene.render.image_settings, multilayer_exr=True)
     scene.render.filepath = str(exr)
-    _log(f"atmos: rendering {exr} (multilayer EXR with the atmosphere AOVs)")
+    scene.atmos.render_mode = "COMPOSITOR"   # its per-sample passes; the default Per Pixel mode writes distances
+    _log(f"atmos: rendering {exr} (multilayer EXR with the transmittance and in-scattering passes, Compositor mode)")
     import bpy
 
     bpy.ops.render.render(write_still=True, scene=scene.name)
