@@ -43,7 +43,7 @@ REBUILD: dict[stamps.GroupKind, Callable[[bpy.types.NodeTree, str], None]] = {
         tree, AerialFeatures.from_key(key), distance="RAY"),
     stamps.SKY: lambda tree, key: sky.build_sky(tree, SkyFeatures.from_key(key)),
     stamps.SKY_LIGHTING: _rebuild_sky_lighting,
-    stamps.SKY_VIEW: lambda tree, key: sky_view.build_sky_view(tree, sky_view.features_from_key(key)),
+    stamps.SKY_VIEW: lambda tree, key: sky_view.build_sky_view(tree, SkyFeatures.from_key(key)),
     stamps.COMPOSITE: lambda tree, key: composite.build_composite_group(tree),
     stamps.PER_PIXEL: lambda tree, key: per_pixel.build_per_pixel_composite(
         tree, AerialFeatures.from_key(key), composite.ensure_composite_group()),

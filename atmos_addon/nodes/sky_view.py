@@ -24,6 +24,7 @@ table's sky everywhere (its world output is the "All" one; its Linear lookups fi
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import bpy
@@ -42,9 +43,9 @@ OUTPUT_EXACT = "Exact"
 
 
 def sky_view_key(features: SkyFeatures) -> str:
-    """What the group is built for: the Mie term or not, the blend of key tiles or not."""
-    return ("rayleigh" + ("+mie" if features.mie else "") + ("+abs" if features.absorption else "")
-            + ("+blend" if features.blend else ""))
+    """What the group is built for: the sky's key without its ground, which the view never shows (the table's sky
+    does, below the horizon); :meth:`SkyFeatures.from_key` reads it back."""
+    return dataclasses.replace(features, ground="BLACK").key
 
 
 def camera_sky(g: GraphBuilder, features: SkyFeatures) -> tuple[Socket, Socket]:
@@ -96,11 +97,3 @@ def ensure_sky_view_group(features: SkyFeatures) -> bpy.types.ShaderNodeTree:
     if not stamps.is_current(tree, stamps.SKY_VIEW, sky_view_key(features)):
         build_sky_view(tree, features)
     return tree
-
-
-def features_from_key(key: str) -> SkyFeatures:
-    """The sky features a stamped key names (the level is Precise: the group exists only there)."""
-    tokens = set(str(key).split("+"))
-    return SkyFeatures(mie="mie" in tokens, absorption="abs" in tokens, ground="BLACK", level="precise",
-                       blend="blend" in tokens)
-

@@ -895,6 +895,24 @@ def horizon_cosine(camera_altitude_m: float, atm: Atmosphere) -> float:
 HORIZON_NUDGE = 1e-9
 
 
+def _azimuth_column(view_dir: np.ndarray, sun_dir: np.ndarray, columns: int, dt) -> np.ndarray:
+    """The view's azimuth from the sun's (0..pi: the tables are mirror-symmetric about it) as a fractional column
+    of a block of ``columns`` azimuths, in the shader's arithmetic: atan2(|v x l|_z, (v . l)_xy) (N - 1) / pi."""
+    v, s = view_dir, sun_dir
+    cross = v[..., 0] * s[..., 1] - v[..., 1] * s[..., 0]
+    dot = v[..., 0] * s[..., 0] + v[..., 1] * s[..., 1]
+    return np.arctan2(np.abs(cross), dot) * dt((columns - 1) / np.pi)
+
+
+def _view_grid(across: np.ndarray, z: np.ndarray, azimuths: int,
+               sun_elevation_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """(views, sun): unit view directions at horizontal components ``across`` and zenith cosines ``z`` (rows, 1),
+    crossed with ``azimuths`` azimuths from the sun's, 0..pi; and the sun's direction at azimuth 0."""
+    azimuth = np.linspace(0.0, np.pi, azimuths)[None, :]
+    views = np.stack(np.broadcast_arrays(across * np.cos(azimuth), across * np.sin(azimuth), z), axis=-1)
+    return views, np.array([math.cos(sun_elevation_rad), 0.0, math.sin(sun_elevation_rad)])
+
+
 def sky_view_cosines(shape: TableShape, horizon: float) -> np.ndarray:
     """View zenith cosines of the sky view's rows for a horizon at zenith cosine ``horizon``: the first
     ``sky_ground_rows`` K rows the ground's, from the nadir to the horizon,
@@ -937,10 +955,7 @@ def sky_view(tile: Tile, sun_elevation_rad: float, atm: Atmosphere) -> tuple[np.
     z[shape.sky_ground_rows - 1] -= HORIZON_NUDGE
     z[shape.sky_ground_rows] += HORIZON_NUDGE
     z = z[:, None]
-    azimuth = np.linspace(0.0, np.pi, shape.sky_azimuths)[None, :]
-    across = np.sqrt(np.maximum(1.0 - z * z, 0.0))
-    views = np.stack(np.broadcast_arrays(across * np.cos(azimuth), across * np.sin(azimuth), z), axis=-1)
-    sun = np.array([math.cos(sun_elevation_rad), 0.0, math.sin(sun_elevation_rad)])
+    views, sun = _view_grid(np.sqrt(np.maximum(1.0 - z * z, 0.0)), z, shape.sky_azimuths, sun_elevation_rad)
     f_ex, light, hits = sky_from_tile(tile, views, sun, atm, dtype=np.float64)
     ground_transmittance = np.where(hits[:, :1], f_ex[:, 0], 0.0)
     return np.ascontiguousarray(light), np.ascontiguousarray(ground_transmittance)
@@ -972,8 +987,7 @@ def lighting_from_tile(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, atm:
     s = np.asarray(sun_dir, dtype=dt)
     horizon = horizon_cosine(tile.camera_radius_m - atm.planet_radius, atm)
     row = sky_view_rows(shape, np.clip(v[..., 2], dt(-1), dt(1)), horizon, dt)
-    cross = np.abs(v[..., 0] * s[1] - v[..., 1] * s[0])
-    azimuth = np.arctan2(cross, v[..., 0] * s[0] + v[..., 1] * s[1]) * dt((shape.sky_azimuths - 1) / np.pi)
+    azimuth = _azimuth_column(v, s, shape.sky_azimuths, dt)
     light = _linear_lookup(tile.sky_radiance, azimuth, row, dt)
     ground = _linear_lookup(tile.sky_ground_transmittance[:, None, :], np.zeros_like(row), row, dt)
     lit = np.asarray(albedo, dtype=dt) * np.asarray(e_sun, dtype=dt) * (max(float(s[2]), 0.0) / np.pi)
@@ -1025,10 +1039,7 @@ def camera_sky_view(tile: Tile, sun_elevation_rad: float, atm: Atmosphere) -> tu
     shape = tile.shape
     altitude = float(tile.camera_radius_m - atm.planet_radius)
     elevation = camera_sky_elevations(shape, horizon_elevation(altitude, atm))[:, None]
-    azimuth = np.linspace(0.0, np.pi, shape.sky_azimuths)[None, :]
-    views = np.stack(np.broadcast_arrays(np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth),
-                                         np.sin(elevation)), axis=-1)
-    sun = np.array([math.cos(sun_elevation_rad), 0.0, math.sin(sun_elevation_rad)])
+    views, sun = _view_grid(np.cos(elevation), np.sin(elevation), shape.sky_azimuths, sun_elevation_rad)
     length, _ = sky_path_length(views[..., 2], altitude, atm, np.float64)
     _, rayleigh, mie, nu = _phase_free_terms(tile, views, sun, length, atm, np.float64,
                                              row=np.full(length.shape, shape.altitudes - 1.0))
@@ -1046,8 +1057,7 @@ def camera_sky_from_tile(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, at
     v = np.asarray(view_dir, dtype=dt)
     s = np.asarray(sun_dir, dtype=dt)
     row = camera_sky_rows(shape, v[..., 2], horizon_elevation(tile.camera_radius_m - atm.planet_radius, atm), dt)
-    cross = np.abs(v[..., 0] * s[1] - v[..., 1] * s[0])
-    azimuth = np.arctan2(cross, v[..., 0] * s[0] + v[..., 1] * s[1]) * dt((shape.sky_azimuths - 1) / np.pi)
+    azimuth = _azimuth_column(v, s, shape.sky_azimuths, dt)
     rayleigh = _linear_lookup(tile.camera_sky_rayleigh, azimuth, row, dt)
     mie = _linear_lookup(tile.camera_sky_mie, azimuth, row, dt)
     nu = np.einsum("...i,i->...", v, s)
@@ -1188,9 +1198,7 @@ def table_coordinates(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, dista
     altitude = target_altitude(tile.camera_radius_m, v[..., 2], d, atm.planet_radius, dtype)
     fraction = np.clip(altitude / dt(atm.atmosphere_height), dt(0), dt(1))
     row = np.power(fraction, dt(1.0 / 3.0)) * dt(shape.altitudes - 1)
-    cross = v[..., 0] * s[..., 1] - v[..., 1] * s[..., 0]
-    dot = v[..., 0] * s[..., 0] + v[..., 1] * s[..., 1]
-    azimuth = np.arctan2(np.abs(cross), dot) * dt((shape.azimuths - 1) / np.pi)
+    azimuth = _azimuth_column(v, s, shape.azimuths, dt)
     column = np.minimum(np.sqrt(d / dt(tile.max_distance_m)), dt(1)) * dt(shape.distances - 1)
     return row.astype(dt), azimuth.astype(dt), column.astype(dt)
 

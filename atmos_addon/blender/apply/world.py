@@ -253,6 +253,14 @@ def _route_other_rays(world: bpy.types.World) -> None:
         world.node_tree.links.new(source.outputs["Background"], socket)
 
 
+def _remove_sky_view_nodes(world: bpy.types.World) -> bool:
+    """Remove the camera sky view's nodes from ``world``; True if there were any."""
+    leaving = [n for n in tagged_nodes(world) if n.get(TAG) in SKY_VIEW_TAGS]
+    for node in leaving:
+        world.node_tree.nodes.remove(node)
+    return bool(leaving)
+
+
 def _route_camera_rays(world: bpy.types.World, features) -> None:
     """Cycles' camera rays at the Precise level: above the horizon band the "Atmos Sky View" group's two lookups
     (:mod:`atmos_addon.nodes.sky_view`), within it and below the horizon the camera's Background (the "Atmos Sky"
@@ -269,18 +277,14 @@ def _route_camera_rays(world: bpy.types.World, features) -> None:
     if features.level != "precise":
         if not (mix.inputs[2].is_linked and mix.inputs[2].links[0].from_node == background):
             tree.links.new(background.outputs["Background"], mix.inputs[2])
-        leaving = [n for n in tagged_nodes(world) if n.get(TAG) in SKY_VIEW_TAGS]
-        for node in leaving:
-            tree.nodes.remove(node)
-        if leaving:
+        if _remove_sky_view_nodes(world):
             registry.remove_unused((stamps.SKY_VIEW,))
         return
     group = groups().sky_view.ensure_sky_view_group(features)
     view = _tagged(world, SKY_VIEW_TAG, "ShaderNodeGroup")
     view_background = _tagged(world, SKY_VIEW_BACKGROUND_TAG, "ShaderNodeBackground")
     if band is None or view is None or view_background is None:
-        for node in [n for n in tagged_nodes(world) if n.get(TAG) in SKY_VIEW_TAGS]:
-            tree.nodes.remove(node)
+        _remove_sky_view_nodes(world)   # a partial set (a hand edit): made again whole
         x, y = mix.location
         view = tree.nodes.new("ShaderNodeGroup")
         view.label = "Atmos Sky View"
