@@ -4,7 +4,7 @@
     .venv/bpy-5.2.3/bin/python tools/bench_group_builds.py [--repeats 3]
 
 Builds, in a fresh file, the Precise level's groups an enable may build: the Compositor mode's per-sample
-"Atmos Aerial Perspective", the Per Pixel mode's compositor group (one Math node per channel), the world's "Atmos
+"Atmos Aerial Perspective", the Per Pixel mode's compositor group (a colour one vector socket, as in the shader groups), the world's "Atmos
 Sky" and its camera "Atmos Sky View"; prints each one's node count and the median wall time of ``--repeats`` builds.
 Then the cost of one ``nodes.new`` and one ``links.new`` in a compositor tree already holding 100, 400 and 1600 nodes:
 Blender re-runs the tree's update over the nodes already there at every edit, so a build grows with the square of

@@ -56,7 +56,8 @@ class GraphBuilder:
         """Add a node of type ``bl_idname`` with the given RNA properties; ``depth`` is its layout column."""
         node = self.tree.nodes.new(bl_idname)
         for key, value in properties.items():
-            setattr(node, key, value)
+            if getattr(node, key) != value:   # a write re-runs the tree's update, even of the value it holds
+                setattr(node, key, value)
         if label:
             node.label = label
         self._depth[node.name] = 0 if depth is None else depth
@@ -69,8 +70,10 @@ class GraphBuilder:
             source_depth = self._depth.get(value.node.name, 0)
             self._depth[node.name] = max(self._depth[node.name], source_depth + 1)
         elif _is_vector(value):
-            socket.default_value = tuple(float(v) for v in value)
-        else:
+            value = tuple(float(v) for v in value)
+            if tuple(socket.default_value) != value:
+                socket.default_value = value
+        elif socket.default_value != float(value):
             socket.default_value = float(value)
 
     def _math(self, operation: str, *operands: Operand, label: str = "") -> Socket:
@@ -360,27 +363,31 @@ _FOLDED: dict[str, Callable[..., float]] = {
 }
 
 
-class ChannelGraphBuilder(GraphBuilder):
-    """The same arithmetic in a compositor tree, where a colour or vector is three scalar sockets.
+class CompositorBuilder(GraphBuilder):
+    """The same arithmetic in a compositor tree (the Per Pixel mode's group), node for node the shader groups'.
 
-    Compositor trees have no Gamma or Attribute node, and a compositor's work is per pixel and per channel
-    anyway, so every per-component operation becomes one Math node per channel, and a colour is a 3-tuple of operands (sockets or numbers)
-    that :meth:`separate` and :meth:`combine` pass through without a node; arithmetic on constants only is
-    computed here, not built (the unused third component of the two-species vectors). Parameters come from a mapping
-    (name -> scalar socket or 3-tuple), normally a group's inputs, through :meth:`attribute`. The functions that
-    build the shader groups (``dome_distances``, ``scattering_terms``...) take either builder, so the compositor
-    evaluates the very equations the shaders do, channel by channel (Vector Math is exact per component, and
-    the Gamma node and Math Power compute the same powf).
+    A colour or vector is one vector socket and its arithmetic one Vector Math node, as in a shader group, so the
+    functions that build the shader groups (``dome_distances``, ``scattering_terms``, ``precise_terms``...) build the
+    compositor's from the very equations. What a compositor tree lacks is supplied here: parameters come from a mapping
+    (name -> socket, normally the group's inputs) instead of Attribute nodes (:meth:`attribute`); a texel is fetched
+    by a Map UV node with nearest filtering (:meth:`texel`); a power per channel is Vector Math Power (4.5's compositor
+    has no shader Gamma node; the bases the groups raise are positive, where both compute powf); a blend is
+    a + f (b - a) with Vector Math (the numpy backend's form). Arithmetic on constants only is computed here, not built,
+    three copies of one scalar are that scalar (a link into a vector input broadcasts it), and a vector is separated
+    once however often the equations ask. Every node added or linked re-runs Blender's update of the whole tree, so
+    the build costs the square of the node count: 220 nodes at Precise, built in 0.13-0.27 s, where one Math node per
+    channel took 396 nodes and 0.91 s (Blender 5.2.3, ``tools/bench_group_builds.py``).
     """
 
     def __init__(self, tree: bpy.types.NodeTree, parameters: dict[str, Operand]) -> None:
         super().__init__(tree)
         self.parameters = parameters
         self._image_node = None
+        self._separated: dict[int, tuple] = {}
 
     @staticmethod
-    def _channels(value: Operand) -> tuple:
-        return tuple(value) if _is_vector(value) else (value, value, value)
+    def _component(value: Operand, index: int) -> float:
+        return float(value[index]) if _is_vector(value) else float(value)
 
     def _math(self, operation: str, *operands: Operand, label: str = "") -> Socket | float:
         if operation in _FOLDED and not any(isinstance(value, bpy.types.NodeSocket) for value in operands):
@@ -390,9 +397,52 @@ class ChannelGraphBuilder(GraphBuilder):
             self._feed(node, socket, value)
         return node.outputs[0]
 
+    def _vector_math(self, operation: str, *operands: Operand, label: str = "") -> Socket | tuple:
+        if operation in _FOLDED and not any(isinstance(value, bpy.types.NodeSocket) for value in operands):
+            return tuple(_FOLDED[operation](*(self._component(value, c) for value in operands)) for c in range(3))
+        return super()._vector_math(operation, *operands, label=label)
+
+    def scale(self, vector: Operand, factor: Operand, *, label: str = "") -> Socket | tuple:
+        if not any(isinstance(value, bpy.types.NodeSocket) for value in (vector, factor)):
+            return tuple(self._component(vector, c) * float(factor) for c in range(3))
+        return super().scale(vector, factor, label=label)
+
+    def power_per_channel(self, colour: Operand, exponent: Operand, *, label: str = "") -> Socket:
+        """colour^exponent per channel: one Vector Math Power (a scalar exponent socket is broadcast by its link)."""
+        exponent = exponent if isinstance(exponent, bpy.types.NodeSocket) or _is_vector(exponent) else (exponent,) * 3
+        return self._vector_math("POWER", colour, exponent, label=label)
+
+    def mix(self, factor: Operand, a: Operand, b: Operand, *, label: str = "") -> Socket:
+        """a + factor (b - a), per component if a or b is a colour (the numpy backend's form)."""
+        return self.multiply_add(factor, self.sub(b, a), a, label=label)
+
+    def separate(self, colour: Operand, *, label: str = "") -> tuple:
+        """The three components: a constant's numbers, a socket's Separate XYZ (one per socket, however often)."""
+        if not isinstance(colour, bpy.types.NodeSocket):
+            return tuple(self._component(colour, c) for c in range(3))
+        key = colour.as_pointer()
+        if key not in self._separated:
+            node = self.node(COMPOSITOR_SEPARATE_XYZ, label=label)
+            self._feed(node, node.inputs[0], colour)
+            self._separated[key] = tuple(node.outputs[:3])
+        return self._separated[key]
+
+    def combine(self, r: Operand, g: Operand, b: Operand, *, label: str = "") -> Socket | tuple:
+        """A vector from three scalars: numbers stay numbers; one scalar socket three times is that socket (its link
+        into a vector input gives the three components); else Combine XYZ."""
+        parts = (r, g, b)
+        if not any(isinstance(value, bpy.types.NodeSocket) for value in parts):
+            return tuple(float(value) for value in parts)
+        if isinstance(r, bpy.types.NodeSocket) and not _is_vector(r) and r == g and r == b:
+            return r
+        node = self.node(COMPOSITOR_COMBINE_XYZ, label=label)
+        for socket, value in zip(node.inputs, parts):
+            self._feed(node, socket, value)
+        return node.outputs[0]
+
     def prune(self) -> int:
-        """Remove the nodes this builder made whose outputs feed nothing (a component no equation reads, like the
-        third of a two-species vector), repeatedly; returns how many were removed."""
+        """Remove the nodes this builder made whose outputs feed nothing (a component no equation reads), repeatedly;
+        returns how many were removed."""
         removed = 0
         while True:
             dead = [node for node in self.tree.nodes if node.name in self._depth and node.outputs
@@ -404,80 +454,16 @@ class ChannelGraphBuilder(GraphBuilder):
                 self.tree.nodes.remove(node)
             removed += len(dead)
 
-    def _vector_math(self, operation: str, *operands: Operand, label: str = "") -> tuple:
-        """The Vector Math ``operation`` as one Math node per channel (FLOOR, ABSOLUTE...: the same name in Math)."""
-        return self._per_component(operation, *operands, label=label)
+    def shading_input(self, name: str, *, label: str = ""):
+        raise TypeError(f"a compositor graph has no shading point ({name!r}): its inputs are the group's")
 
-    def _per_component(self, operation: str, *operands: Operand, label: str = "") -> tuple:
-        split = [self._channels(value) for value in operands]
-        return tuple(self._math(operation, *(parts[c] for parts in split), label=f"{label} {'RGB'[c]}" if label else "")
-                     for c in range(3))
-
-    def _arithmetic(self, operation: str, a: Operand, b: Operand, label: str):
-        if _is_vector(a) or _is_vector(b):
-            return self._per_component(operation, a, b, label=label)
-        return self._math(operation, a, b, label=label)
-
-    def scale(self, vector: Operand, factor: Operand, *, label: str = ""):
-        return self._per_component("MULTIPLY", vector, factor, label=label)
-
-    def neg(self, a: Operand, *, label: str = ""):
-        return self._arithmetic("MULTIPLY", a, -1.0, label)
-
-    def multiply_add(self, a: Operand, b: Operand, c: Operand, *, label: str = ""):
-        if any(_is_vector(v) for v in (a, b, c)):
-            return self._per_component("MULTIPLY_ADD", a, b, c, label=label)
-        return self._math("MULTIPLY_ADD", a, b, c, label=label)
-
-    def abs(self, a: Operand, *, label: str = ""):
-        if _is_vector(a):
-            return self._per_component("ABSOLUTE", a, label=label)
-        return self._math("ABSOLUTE", a, label=label)
-
-    def power_per_channel(self, colour: Operand, exponent: Operand, *, label: str = ""):
-        """colour^exponent per channel, Math Power (the bases the groups raise are positive)."""
-        return self._per_component("POWER", colour, exponent, label=label)
-
-    def dot(self, a: Operand, b: Operand, *, label: str = "") -> Socket:
-        a, b = self._channels(a), self._channels(b)
-        partial = self._math("MULTIPLY", a[0], b[0])
-        partial = self._math("MULTIPLY_ADD", a[1], b[1], partial)
-        return self._math("MULTIPLY_ADD", a[2], b[2], partial, label=label)
-
-    def length(self, a: Operand, *, label: str = ""):
-        return self._math("SQRT", self.dot(a, a), label=label)
-
-    def cross(self, a: Operand, b: Operand, *, label: str = "") -> tuple:
-        (ax, ay, az), (bx, by, bz) = self._channels(a), self._channels(b)
-        return (self.sub(self.mul(ay, bz), self.mul(az, by)), self.sub(self.mul(az, bx), self.mul(ax, bz)),
-                self.sub(self.mul(ax, by), self.mul(ay, bx)))
-
-    def normalize(self, a: Operand, *, label: str = "") -> tuple:
-        """a / |a| (the zero vector stays zero: Blender's divide gives 0 where the length is 0)."""
-        length = self.length(a, label=f"|{label}|" if label else "")
-        return self._per_component("DIVIDE", a, length, label=label)
-
-    def mix(self, factor: Operand, a: Operand, b: Operand, *, label: str = ""):
-        """a + factor (b - a), per component if a or b is a colour."""
-        return self.multiply_add(factor, self.sub(b, a), a, label=label)
-
-    def separate(self, colour: Operand, *, label: str = "") -> tuple:
-        return self._channels(colour)
-
-    def combine(self, r: Operand, g: Operand, b: Operand, *, label: str = "") -> tuple:
-        return (r, g, b)
-
-    def per_channel(self, fn: Callable[..., Socket], *operands: Operand, label: str = "") -> tuple:
-        split = [self._channels(op) if _is_vector(op) else (op, op, op) for op in operands]
-        return tuple(fn(*(parts[c] for parts in split)) for c in range(3))
-
-    def texture(self, image, u: Operand, v: Operand, *, label: str = "") -> tuple:
+    def texture(self, image, u: Operand, v: Operand, *, label: str = ""):
         raise TypeError("the compositor graphs sample their table unfiltered (texel)")
 
-    def texel(self, image: bpy.types.Image | None, u: Operand, v: Operand, *, label: str = "") -> tuple:
+    def texel(self, image: bpy.types.Image | None, u: Operand, v: Operand, *, label: str = "") -> Socket:
         """``image`` at per-pixel coordinates (u, v), unfiltered: an Image node (one per builder) sampled by a Map UV
-        node with nearest-texel filtering (4.5: ``filter_type``; 5.0: the Interpolation input). The UV's third
-        component is 1 (Map UV reads it as the sample's alpha where the UV is a colour)."""
+        node with nearest-texel filtering (4.5: ``filter_type``; 5.0: the Interpolation input); its colour. The UV's
+        third component is 1 (Map UV reads it as the sample's alpha where the UV is a colour)."""
         if self._image_node is None:
             self._image_node = self.node("CompositorNodeImage", label="table image")
             self._image_node.image = image
@@ -492,9 +478,7 @@ class ChannelGraphBuilder(GraphBuilder):
             node.filter_type = "NEAREST"
         self._feed(node, node.inputs["Image"], self._image_node.outputs["Image"])
         self._feed(node, node.inputs["UV"], uv.outputs[0])
-        split = self.node(COMPOSITOR_SEPARATE_XYZ, label=label)
-        self._feed(split, split.inputs[0], node.outputs["Image"])
-        return tuple(split.outputs[:3])
+        return node.outputs["Image"]
 
     def attribute(self, name: str, *, attribute_type: str = "VIEW_LAYER", output: str = "Color",
                   label: str = ""):
@@ -542,15 +526,15 @@ _ARRAY_MATH: dict[str, Callable[..., np.ndarray]] = {
 }
 
 
-class ArrayBuilder(ChannelGraphBuilder):
+class ArrayBuilder(GraphBuilder):
     """The same equations evaluated in numpy: the functions that build the node groups (``scattering_terms``,
     ``dome_distances``, ``precise_terms``...) run on this builder and return arrays instead of sockets, so what a
     group computes is a Python value the tests compare with the physics core and with Blender's renders: one
     source for each equation, evaluated two ways.
 
     Every operation is the float32 arithmetic of Blender's node (:data:`_ARRAY_MATH`: a divide by 0 gives 0, the
-    Gamma node leaves channels <= 0 unchanged); a scalar is an array, a vector or colour three arrays (as in
-    :class:`ChannelGraphBuilder`). ``parameters`` are the group's parameters by property name (what
+    Gamma node leaves channels <= 0 unchanged); a scalar is an array, a vector or colour three arrays, its arithmetic
+    per component. ``parameters`` are the group's parameters by property name (what
     :func:`~.parameters.shader_parameter_values` writes; a missing one reads 0, as Blender's Attribute node does),
     ``inputs`` the shading point's values by :data:`SHADING_INPUTS` name (arrays, (N,) or (N, 3)), ``images`` the
     pixels of the images the graph samples by name ((height, width, 4) arrays, row 0 at the bottom).
@@ -563,6 +547,72 @@ class ArrayBuilder(ChannelGraphBuilder):
                            for name, value in parameters.items()}
         self.inputs = {name: self._value(value, name in _VECTOR_INPUTS) for name, value in inputs.items()}
         self.images = dict(images or {})
+
+    # -- a colour or vector is three arrays, its arithmetic per component ------------------------------
+
+    @staticmethod
+    def _channels(value: Operand) -> tuple:
+        return tuple(value) if _is_vector(value) else (value, value, value)
+
+    def _vector_math(self, operation: str, *operands: Operand, label: str = "") -> tuple:
+        return self._per_component(operation, *operands, label=label)
+
+    def _per_component(self, operation: str, *operands: Operand, label: str = "") -> tuple:
+        split = [self._channels(value) for value in operands]
+        return tuple(self._math(operation, *(parts[c] for parts in split)) for c in range(3))
+
+    def _arithmetic(self, operation: str, a: Operand, b: Operand, label: str):
+        if _is_vector(a) or _is_vector(b):
+            return self._per_component(operation, a, b)
+        return self._math(operation, a, b)
+
+    def scale(self, vector: Operand, factor: Operand, *, label: str = ""):
+        return self._per_component("MULTIPLY", vector, factor)
+
+    def neg(self, a: Operand, *, label: str = ""):
+        return self._arithmetic("MULTIPLY", a, -1.0, label)
+
+    def multiply_add(self, a: Operand, b: Operand, c: Operand, *, label: str = ""):
+        if any(_is_vector(v) for v in (a, b, c)):
+            return self._per_component("MULTIPLY_ADD", a, b, c)
+        return self._math("MULTIPLY_ADD", a, b, c)
+
+    def abs(self, a: Operand, *, label: str = ""):
+        return self._per_component("ABSOLUTE", a) if _is_vector(a) else self._math("ABSOLUTE", a)
+
+    def dot(self, a: Operand, b: Operand, *, label: str = ""):
+        a, b = self._channels(a), self._channels(b)
+        partial = self._math("MULTIPLY", a[0], b[0])
+        partial = self._math("MULTIPLY_ADD", a[1], b[1], partial)
+        return self._math("MULTIPLY_ADD", a[2], b[2], partial)
+
+    def length(self, a: Operand, *, label: str = ""):
+        return self._math("SQRT", self.dot(a, a))
+
+    def cross(self, a: Operand, b: Operand, *, label: str = "") -> tuple:
+        (ax, ay, az), (bx, by, bz) = self._channels(a), self._channels(b)
+        return (self.sub(self.mul(ay, bz), self.mul(az, by)), self.sub(self.mul(az, bx), self.mul(ax, bz)),
+                self.sub(self.mul(ax, by), self.mul(ay, bx)))
+
+    def normalize(self, a: Operand, *, label: str = "") -> tuple:
+        """a / |a| (the zero vector stays zero: Blender's divide gives 0 where the length is 0)."""
+        return self._per_component("DIVIDE", a, self.length(a))
+
+    def mix(self, factor: Operand, a: Operand, b: Operand, *, label: str = ""):
+        """a + factor (b - a), per component if a or b is a colour."""
+        return self.multiply_add(factor, self.sub(b, a), a)
+
+    def separate(self, colour: Operand, *, label: str = "") -> tuple:
+        return self._channels(colour)
+
+    def combine(self, r: Operand, g: Operand, b: Operand, *, label: str = "") -> tuple:
+        return (r, g, b)
+
+    def per_channel(self, fn: Callable[..., Socket], *operands: Operand, label: str = "") -> tuple:
+        split = [self._channels(op) for op in operands]
+        return tuple(fn(*(parts[c] for parts in split)) for c in range(3))
+
+    # -- values ---------------------------------------------------------------------------------------
 
     @staticmethod
     def _value(value, vector: bool) -> np.ndarray | tuple:

@@ -16,8 +16,8 @@ and this compositor group evaluates, per pixel, the mean distance s = 1000 D / C
                            with nearest filtering and blended bilinearly in the graph, as the shader does
     T = C F_ex,  L = C L_in  ->  the "Atmos Aerial Composite" group: out = Image (T + max(1 - C, 0)) / k + L / k
 
-with the very functions that build the shader group, written channel by channel (:class:`.graph.
-ChannelGraphBuilder`): a fully covered pixel gets exactly L0 F_ex + L_in, a sky pixel (C = 0) passes untouched.
+with the very functions that build the shader group, a colour one vector socket as there (:class:`.graph.
+CompositorBuilder`): a fully covered pixel gets exactly L0 F_ex + L_in, a sky pixel (C = 0) passes untouched.
 Only edges differ from the per-sample mode: a pixel mixing two distances gets F_ex of the mean distance, not
 the mean of F_ex (Jensen's gap, first order in the mix like the per-sample mode's own edge error;
 docs/silhouettes.md measures both).
@@ -36,7 +36,7 @@ import bpy
 from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_VIEW
 from . import parameters, stamps
 from .dome import cos_theta_to_sun, dome_distances, sun_direction
-from .graph import COMPOSITOR_SEPARATE_XYZ, ChannelGraphBuilder
+from .graph import CompositorBuilder
 from .precise import precise_terms
 from .surface import DISTANCE_AOV_UNIT_M
 from .terms import AerialFeatures, scattering_terms
@@ -109,38 +109,24 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
     tree.nodes.clear()
     _ensure_interface(tree)
     group_in = tree.nodes.new("NodeGroupInput")
-    inputs = {}
-    for name, socket_name, size in PARAMETER_SOCKETS + (PRECISE_SOCKETS if features.level == "precise" else ()):
-        socket = group_in.outputs[socket_name]
-        if size == 3:
-            split = tree.nodes.new(COMPOSITOR_SEPARATE_XYZ)
-            tree.links.new(socket, split.inputs[0])
-            socket = tuple(split.outputs[:3])
-            if name == parameters.SCALE_HEIGHTS:
-                socket = (*socket[:2], 0.0)   # (H_R, H_M, 0): the z component is a constant
-        inputs[name] = socket
-    g = ChannelGraphBuilder(tree, inputs)
+    inputs = {name: group_in.outputs[socket_name]
+              for name, socket_name, _ in PARAMETER_SOCKETS + (PRECISE_SOCKETS if features.level == "precise" else ())}
+    g = CompositorBuilder(tree, inputs)
     coverage = group_in.outputs["Coverage"]
-    split_view = tree.nodes.new(COMPOSITOR_SEPARATE_XYZ)
-    tree.links.new(group_in.outputs["View"], split_view.inputs[0])
-    view = g.normalize(tuple(split_view.outputs[:3]), label="v")
+    view = g.normalize(group_in.outputs["View"], label="v")
     # Blender's divide gives 0 where nothing wrote (C = 0): s = 0, F_ex = 1, L_in = 0, and T = L = 0 below.
     s = g.mul(g.div(group_in.outputs["Distance"], coverage), DISTANCE_AOV_UNIT_M, label="s (m)")
     if features.level == "precise":   # the tile's camera altitude is a parameter
         f_ex, l_in = precise_terms(g, features, s, view)
     else:
-        r_rayleigh, r_mie = dome_distances(g, view[2])
+        r_rayleigh, r_mie = dome_distances(g, g.separate(view, label="v")[2])
         s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
         s_mie = g.min(s, r_mie, label="s_M = min(s, R_M)") if features.mie or features.absorption else None
         f_ex, l_in = scattering_terms(g, features, s_rayleigh, s_mie, cos_theta_to_sun(g, view, sun_direction(g)))
     combine = g.node("CompositorNodeGroup", label="Atmos: combine")
     combine.node_tree = composite_group
-    for name, channels in (("Transmittance", g.scale(f_ex, coverage, label="T = C F_ex")),
-                           ("Inscattering", g.scale(l_in, coverage, label="L = C L_in"))):
-        colour = g.node("CompositorNodeCombineColor", label=name)
-        for socket, value in zip(colour.inputs, channels):
-            g._feed(colour, socket, value)
-        g._feed(combine, combine.inputs[name], colour.outputs[0])
+    g._feed(combine, combine.inputs["Transmittance"], g.scale(f_ex, coverage, label="T = C F_ex"))
+    g._feed(combine, combine.inputs["Inscattering"], g.scale(l_in, coverage, label="L = C L_in"))
     g._feed(combine, combine.inputs["Coverage"], coverage)
     g._feed(combine, combine.inputs["Image"], group_in.outputs["Image"])
     output = g.node("NodeGroupOutput", label="Group Output")

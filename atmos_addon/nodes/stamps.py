@@ -32,7 +32,8 @@ class GroupKind:
 
 #: Versions: aerial 2 lengths clamped to the virtual sky dome, 3 the layered dome, 4 powers and no phi1, 5 Precise
 #: distances taken at most to the top of the atmosphere; sky 2 the layered dome, 3 powers and no phi1 (the aerial
-#: group's terms); surface 2 the Per Pixel mode's outputs, 3 stamped by kind with its modes as features; Per Pixel 4;
+#: group's terms); surface 2 the Per Pixel mode's outputs, 3 stamped by kind with its modes as features; Per Pixel 4,
+#: 5 Vector Math on colours;
 #: In-Render 3 the dome's square roots by one Gamma node.
 AERIAL = GroupKind("Atmos Aerial Perspective", "ShaderNodeTree", 5)
 AERIAL_SEGMENT = GroupKind("Atmos Aerial Perspective (Ray Segment)", "ShaderNodeTree", 5)
@@ -42,7 +43,7 @@ SKY_LIGHTING = GroupKind("Atmos Sky Lighting", "ShaderNodeTree", 1, per_world=Tr
 SKY_VIEW = GroupKind("Atmos Sky View", "ShaderNodeTree", 1)
 SURFACE = GroupKind("Atmos Surface AOVs", "ShaderNodeTree", 3)
 COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 1)
-PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 4)
+PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 5)
 IN_RENDER_SURFACE = GroupKind("Atmos In-Render Surface", "ShaderNodeTree", 3)
 IN_RENDER_SKY = GroupKind("Atmos In-Render Sky", "ShaderNodeTree", 3)
 #: Not a node group: the tree of each haze dome's material (In-Render mode), its features key the species.
