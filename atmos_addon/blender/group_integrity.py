@@ -34,6 +34,7 @@ STAMP_KEY = "atmos_fingerprint_of"
 AERIAL = stamps.AERIAL.name
 SKY = stamps.SKY.name
 SURFACE = stamps.SURFACE.name
+SURFACE_OUTPUTS = stamps.SURFACE_OUTPUTS.name
 PER_PIXEL = stamps.PER_PIXEL.name
 
 #: Node properties every node has (layout, selection, bookkeeping): not part of the fingerprint.

@@ -5,12 +5,13 @@ clean-ups loop over.
 :mod:`.stamps` names the kinds and their versions; here each kind gets the function that rebuilds a group of that
 kind in place from the features key stamped on it (what it was built for), so a reset gives back exactly the
 group the scene uses, whichever kind it is: the aerial perspective (camera and ray-segment), the sky and its
-per-world lighting table, the compositor's combining and Per Pixel groups, the material group, the In-Render
-surface and sky.
+per-world lighting table, the compositor's combining and Per Pixel groups, the material group and its outputs, the
+In-Render surface and sky.
 """
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Iterable
 
 import bpy
@@ -20,14 +21,31 @@ from .sky import SkyFeatures
 from .terms import AerialFeatures
 
 
-def _rebuild_surface(tree: bpy.types.NodeTree, key: str) -> None:
-    aerial = next((group for group in surface.inner_groups(tree)
-                   if stamps.kind_of(group) == stamps.AERIAL), None)
+def _modes(key: str, tree: bpy.types.NodeTree) -> tuple[str, ...]:
     key = key or str(tree.get("atmos_evaluations", ""))   # a release before the kind stamp kept the modes there
-    modes = tuple(mode for mode in key.split(",") if mode) or ("COMPOSITOR",)
+    return tuple(mode for mode in key.split(",") if mode) or ("COMPOSITOR",)
+
+
+def _rebuild_outputs(tree: bpy.types.NodeTree, key: str) -> None:
+    """The outputs group, detached from the material group meanwhile (its materials re-checked once)."""
+    modes = _modes(key, tree)
+    aerial = next((group for group in surface.inner_groups(tree) if stamps.kind_of(group) == stamps.AERIAL), None)
     if aerial is None and "COMPOSITOR" in modes:
         aerial = aerial_perspective.ensure_aerial_perspective_group()
-    surface.build_surface_group(tree, aerial, modes)
+    wrapper = bpy.data.node_groups.get(surface.SURFACE_GROUP)
+    with surface.detached(wrapper, tree) if stamps.kind_of(wrapper) == stamps.SURFACE else contextlib.nullcontext():
+        surface.build_outputs_group(tree, aerial, modes)
+
+
+def _rebuild_surface(tree: bpy.types.NodeTree, key: str) -> None:
+    """The material group around the file's outputs group (built for the stamped modes when it is missing)."""
+    modes = _modes(key, tree)
+    outputs = bpy.data.node_groups.get(surface.OUTPUTS_GROUP)
+    if stamps.kind_of(outputs) != stamps.SURFACE_OUTPUTS:
+        aerial = aerial_perspective.ensure_aerial_perspective_group() if "COMPOSITOR" in modes else None
+        outputs = surface.ensure_outputs_group(aerial, modes)
+    with surface.detached(tree, outputs) as stand_in:
+        surface.build_surface_group(tree, stand_in, modes)
 
 
 def _rebuild_sky_lighting(tree: bpy.types.NodeTree, key: str) -> None:
@@ -47,6 +65,7 @@ REBUILD: dict[stamps.GroupKind, Callable[[bpy.types.NodeTree, str], None]] = {
     stamps.COMPOSITE: lambda tree, key: composite.build_composite_group(tree),
     stamps.PER_PIXEL: lambda tree, key: per_pixel.build_per_pixel_composite(
         tree, AerialFeatures.from_key(key), composite.ensure_composite_group()),
+    stamps.SURFACE_OUTPUTS: _rebuild_outputs,
     stamps.SURFACE: _rebuild_surface,
     stamps.IN_RENDER_SURFACE: lambda tree, key: in_render.build_surface_group(
         tree, aerial_perspective.ensure_aerial_perspective_group(AerialFeatures.from_key(key), distance="RAY")),

@@ -18,6 +18,7 @@ import pytest
 from mathutils import Vector
 
 from atmos_addon import plan
+from atmos_addon.nodes import surface
 from atmos_addon.blender.apply import compositor, materials
 from atmos_addon.blender import orchestrator, scene_reading, settings_io
 from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, \
@@ -101,12 +102,96 @@ def test_enable_disable_restores_the_user_material_exactly(mode) -> None:
     added = materials.atmos_nodes(material)
     assert len(added) == 1 and added[0].node_tree.name == materials.SURFACE_GROUP
     assert len(material.node_tree.nodes) == len(before[0]) + 1
-    aovs = {n.aov_name for n in added[0].node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"}
-    assert aovs == set(MODE_AOVS[mode])
+    assert surface.aov_names(added[0].node_tree) == set(MODE_AOVS[mode])
     user_part = [n for n in snapshot(material.node_tree)[0] if n[0] != added[0].name]
     assert user_part == before[0], "injection must not move or change the user's nodes"
     orchestrator.disable_effect(bpy.context.scene)
     assert snapshot(material.node_tree) == before
+
+
+def _no_stand_in_left() -> bool:
+    return not any(surface.STAND_IN_KEY in group for group in bpy.data.node_groups)
+
+
+@pytest.mark.parametrize("mode", ["PER_PIXEL", "COMPOSITOR"])
+def test_a_bulk_pass_detaches_the_outputs_and_attaches_them_once(mode) -> None:
+    """Over :data:`materials.BULK_THRESHOLD` materials, enable, a mode switch and disable edit them while the material
+    group is detached from its outputs (``surface.detached``): afterwards every material has the group node, the
+    group instances the outputs group (one attach, counted), the materials' own nodes are untouched, and no stand-in
+    is left; disable strips them all and leaves no Atmos group behind."""
+    scene = bpy.context.scene
+    scene.atmos.render_mode = mode
+    count = materials.BULK_THRESHOLD + 4
+    users = [user_material(f"User {index}") for index in range(count)]
+    for index, material in enumerate(users):
+        mesh_object(f"Object {index}", material)
+    before = [snapshot(material.node_tree) for material in users]
+    attaches = []
+    real_detached = surface.detached
+
+    def counting(tree, outputs_group=None):
+        attaches.append(tree.name)
+        return real_detached(tree, outputs_group)
+
+    surface.detached = counting
+    try:
+        orchestrator.enable_effect(scene)
+        group = bpy.data.node_groups[materials.SURFACE_GROUP]
+        assert attaches == [group.name, group.name]   # building its outputs, then the materials' pass
+        assert surface.outputs_node(group).node_tree == bpy.data.node_groups[surface.OUTPUTS_GROUP]
+        assert surface.aov_names(group) == set(MODE_AOVS[mode]) and _no_stand_in_left()
+        for material, shot in zip(users, before):
+            (node,) = materials.atmos_nodes(material)
+            assert node.node_tree == group
+            assert [n for n in snapshot(material.node_tree)[0] if n[0] != node.name] == shot[0]
+        other = "COMPOSITOR" if mode == "PER_PIXEL" else "PER_PIXEL"
+        attaches.clear()
+        scene.atmos.render_mode = other   # the outputs rebuilt while detached; the materials not edited
+        assert attaches == [group.name]
+        assert surface.aov_names(group) == set(MODE_AOVS[other]) and _no_stand_in_left()
+        assert all(materials.atmos_nodes(material)[0].node_tree == group for material in users)
+        orchestrator.disable_effect(scene)
+    finally:
+        surface.detached = real_detached
+    assert [snapshot(material.node_tree) for material in users] == before
+    assert _no_stand_in_left()
+    assert not [g.name for g in bpy.data.node_groups if g.name.startswith("Atmos")]
+
+
+def test_a_material_group_of_the_older_layout_is_rebuilt_in_place_around_an_outputs_group() -> None:
+    """A file saved before the outputs group (the AOV outputs inside "Atmos Surface AOVs" itself, its version 3): the
+    next enable rebuilds that group in place as one node of "Atmos AOV Outputs"; the materials keep their group node
+    and its links, write the same AOVs, and the aerial group is reused, not copied."""
+    from atmos_addon.nodes import stamps
+
+    scene = bpy.context.scene
+    scene.atmos.render_mode = "COMPOSITOR"
+    material = user_material()
+    tree = material.node_tree
+    tree.links.new(tree.nodes["Color Ramp"].outputs["Alpha"], tree.nodes["Principled BSDF"].inputs["Alpha"])
+    mesh_object("A", material)
+    orchestrator.enable_effect(scene)
+    group = bpy.data.node_groups[materials.SURFACE_GROUP]
+    aerial = bpy.data.node_groups["Atmos Aerial Perspective"]
+    bpy.data.node_groups.remove(bpy.data.node_groups[surface.OUTPUTS_GROUP])
+    surface.build_outputs_group(group, aerial, ("COMPOSITOR",))   # the older layout, stamped as it was
+    stamps.stamp(group, stamps.SURFACE, "COMPOSITOR")
+    group[stamps.VERSION_KEY] = 3
+    (node,) = materials.atmos_nodes(material)
+    linked = [(link.from_socket.identifier, link.to_socket.identifier) for link in material.node_tree.links
+              if link.to_node == node]
+    assert linked == [("Alpha", "Socket_0")]   # the ramp's alpha into the group's Opacity
+    orchestrator.enable_effect(scene)
+    assert bpy.data.node_groups[materials.SURFACE_GROUP] == group and group[stamps.VERSION_KEY] == 4
+    assert [n.bl_idname for n in group.nodes] == ["NodeGroupInput", "ShaderNodeGroup"]
+    outputs = bpy.data.node_groups[surface.OUTPUTS_GROUP]
+    assert surface.outputs_node(group).node_tree == outputs
+    assert surface.aov_names(group) == set(MODE_AOVS["COMPOSITOR"])
+    assert materials.atmos_nodes(material) == [node] and node.node_tree == group
+    assert [(link.from_socket.identifier, link.to_socket.identifier) for link in material.node_tree.links
+            if link.to_node == node] == linked
+    assert bpy.data.node_groups["Atmos Aerial Perspective"] == aerial and aerial.users == 1
+    assert _no_stand_in_left() and not any(g.name.endswith(".001") for g in bpy.data.node_groups)
 
 
 def test_shared_material_once_and_multiple_slots() -> None:
@@ -483,17 +568,18 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     assert len(drivers) == 3 * 7 + 2   # 7 colour/vector parameters, 2 scalars
     assert snapshot(user.node_tree) == material_nodes
     assert {aov.name for aov in scene.view_layers[0].aovs} == {"atmos_coverage", "atmos_distance", "atmos_view"}
-    surface = bpy.data.node_groups[materials.SURFACE_GROUP]   # rebuilt in place: only this mode's outputs
-    assert {n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV"} == {
-        "atmos_coverage", "atmos_distance", "atmos_view"}
-    assert not any(n.bl_idname == "ShaderNodeGroup" for n in surface.nodes)
+    group = bpy.data.node_groups[materials.SURFACE_GROUP]   # its outputs rebuilt in place: only this mode's
+    assert surface.aov_names(group) == {"atmos_coverage", "atmos_distance", "atmos_view"}
+    outputs = bpy.data.node_groups[surface.OUTPUTS_GROUP]
+    assert surface.outputs_node(group).node_tree == outputs
+    assert not any(n.bl_idname == "ShaderNodeGroup" for n in outputs.nodes)
     assert "Atmos Aerial Perspective" not in bpy.data.node_groups   # nothing uses the shader group: none is kept
     other = bpy.data.scenes.new("Other")   # a second enabled scene in the Compositor mode: the group holds both
     other.camera = scene.camera
     other.collection.objects.link(bpy.data.objects["Thing"])
     other.atmos.render_mode = "COMPOSITOR"
     orchestrator.enable_effect(other)
-    assert {n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV"} == {
+    assert surface.aov_names(group) == {
         "atmos_coverage", "atmos_distance", "atmos_view", "atmos_transmittance", "atmos_inscattering"}
     assert bpy.data.node_groups["Atmos Aerial Perspective"].users == 1
     orchestrator.disable_effect(other)

@@ -76,7 +76,8 @@ def test_fresh_groups_are_stamped_and_not_reported_as_edited(mode) -> None:
     absent, evaluating = ((group_integrity.AERIAL, group_integrity.PER_PIXEL) if mode == "PER_PIXEL"
                           else (group_integrity.PER_PIXEL, group_integrity.AERIAL))
     assert absent not in bpy.data.node_groups   # each only while a scene uses its mode
-    for name in (evaluating, group_integrity.SKY, group_integrity.SURFACE, "Atmos Sky View"):
+    for name in (evaluating, group_integrity.SKY, group_integrity.SURFACE, group_integrity.SURFACE_OUTPUTS,
+                 "Atmos Sky View"):
         tree = bpy.data.node_groups[name]
         assert tree.get(group_integrity.FINGERPRINT_KEY) == group_integrity.fingerprint(tree), name
     assert group_integrity.edited_groups(force=True) == []
@@ -104,8 +105,8 @@ def test_editing_a_value_inside_the_aerial_group_warns_and_reset_restores_it() -
     assert bpy.data.node_groups[group_integrity.AERIAL] == aerial  # rebuilt in place, same data-block
     assert aerial.nodes[node_name].inputs[index].default_value == pytest.approx(original)
     assert {m.name: materials.is_injected(m) for m in bpy.data.materials} == users_before
-    surface = bpy.data.node_groups[group_integrity.SURFACE]
-    assert any(n.bl_idname == "ShaderNodeGroup" and n.node_tree == aerial for n in surface.nodes)
+    outputs = bpy.data.node_groups[group_integrity.SURFACE_OUTPUTS]
+    assert any(n.bl_idname == "ShaderNodeGroup" and n.node_tree == aerial for n in outputs.nodes)
     assert scene.atmos.enabled
 
 
@@ -113,18 +114,18 @@ def test_edits_to_links_and_settings_in_sky_and_surface_groups_are_noticed() -> 
     _enabled_scene()
     sky = bpy.data.node_groups[group_integrity.SKY]
     sky.links.remove(sky.links[0])
-    surface = bpy.data.node_groups[group_integrity.SURFACE]
-    math = next(n for n in surface.nodes if n.bl_idname == "ShaderNodeMath")
+    outputs = bpy.data.node_groups[group_integrity.SURFACE_OUTPUTS]
+    math = next(n for n in outputs.nodes if n.bl_idname == "ShaderNodeMath")
     math.operation = "ADD"
     bpy.context.view_layer.update()
-    assert group_integrity.edited_groups(force=True) == [group_integrity.SKY, group_integrity.SURFACE]
+    assert group_integrity.edited_groups(force=True) == [group_integrity.SKY, group_integrity.SURFACE_OUTPUTS]
     n_links = len(sky.links)
     group_integrity.reset_groups(names=[group_integrity.SKY])
     assert len(sky.links) == n_links + 1
-    assert group_integrity.edited_groups() == [group_integrity.SURFACE]
+    assert group_integrity.edited_groups() == [group_integrity.SURFACE_OUTPUTS]
     group_integrity.reset_groups()
     assert group_integrity.edited_groups() == []
-    assert next(n for n in surface.nodes if n.bl_idname == "ShaderNodeMath").operation == "SUBTRACT"
+    assert next(n for n in outputs.nodes if n.bl_idname == "ShaderNodeMath").operation == "SUBTRACT"
 
 
 def test_the_per_pixel_compositor_group_is_watched_and_reset_keeps_the_mode() -> None:
@@ -133,20 +134,20 @@ def test_the_per_pixel_compositor_group_is_watched_and_reset_keeps_the_mode() ->
     Compositor mode's."""
     _enabled_scene(quality="FAST", mode="PER_PIXEL")
     per_pixel = bpy.data.node_groups[group_integrity.PER_PIXEL]
-    surface = bpy.data.node_groups[group_integrity.SURFACE]
-    aovs_before = sorted(n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV")
+    outputs = bpy.data.node_groups[group_integrity.SURFACE_OUTPUTS]
+    aovs_before = sorted(n.aov_name for n in outputs.nodes if n.bl_idname == "ShaderNodeOutputAOV")
     assert aovs_before == ["atmos_coverage", "atmos_distance", "atmos_view"]
     n_nodes = len(per_pixel.nodes)
     assert group_integrity.edited_groups(force=True) == []
     per_pixel.links.remove(per_pixel.links[5])
-    surface.links.remove(surface.links[0])
+    outputs.links.remove(outputs.links[0])
     bpy.context.view_layer.update()
-    assert group_integrity.edited_groups() == [group_integrity.SURFACE, group_integrity.PER_PIXEL]
+    assert group_integrity.edited_groups() == [group_integrity.SURFACE_OUTPUTS, group_integrity.PER_PIXEL]
     assert bpy.ops.atmos.reset_groups() == {"FINISHED"}
     assert group_integrity.edited_groups(force=True) == []
     assert bpy.data.node_groups[group_integrity.PER_PIXEL] == per_pixel and len(per_pixel.nodes) == n_nodes
     assert per_pixel["atmos_features"] == "rayleigh+mie+abs"
-    assert sorted(n.aov_name for n in surface.nodes if n.bl_idname == "ShaderNodeOutputAOV") == aovs_before
+    assert sorted(n.aov_name for n in outputs.nodes if n.bl_idname == "ShaderNodeOutputAOV") == aovs_before
 
 
 def test_a_feature_rebuild_is_not_an_edit_and_the_panel_draw_is_cached() -> None:

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from atmos_addon import plan
-from atmos_addon.nodes import stamps
+from atmos_addon.nodes import stamps, surface
 from atmos_addon.blender.apply import compositor, materials
 from atmos_addon.blender import orchestrator, scene_reading, sun_bake
 
@@ -210,8 +210,7 @@ def test_save_and_reopen_keeps_the_effect_and_load_post_resyncs(tmp_path: Path) 
         assert snapshot(material.node_tree) == shot, name
         (node,) = materials.atmos_nodes(material)
         assert node.node_tree.name == materials.SURFACE_GROUP
-        aovs = {n.aov_name for n in node.node_tree.nodes if n.bl_idname == "ShaderNodeOutputAOV"}
-        assert aovs == {name for name, _ in plan.AOVS["PER_PIXEL"]}   # the default mode's
+        assert surface.aov_names(node.node_tree) == {name for name, _ in plan.AOVS["PER_PIXEL"]}   # the default's
     assert [a.name for a in scene.view_layers[0].aovs] == [n for n, _ in plan.AOVS["PER_PIXEL"]]
     assert compositor_state(scene) == composited
     assert compositor.STATE_KEY in scene

@@ -3,8 +3,8 @@
 
 Each managed material gets one node beside the user's nodes: a group node (label "Atmos Surface
 AOVs", custom property ``atmos_tag``) instancing the shared group "Atmos Surface AOVs"
-(:mod:`atmos_addon.nodes.surface`: the aerial perspective and the AOV outputs, each weighted by the surface's
-opacity alpha = Opacity * (1 - Transparency)).
+(:mod:`atmos_addon.nodes.surface`: through its outputs group, the aerial perspective and the AOV outputs, each
+weighted by the surface's opacity alpha = Opacity * (1 - Transparency)).
 
 Where the surface has an alpha path (Principled BSDF Alpha, or a Mix Shader with a Transparent BSDF
 on one side) that socket is linked to the group's Opacity (or Transparency) input. Weighting by
@@ -17,7 +17,8 @@ normalise pixels where more than one surface wrote.
 
 One node per material (not six) because every node edit in a material whose tree holds AOV outputs
 makes Blender re-check all materials (cost grows with the file); for the same reason a large pass
-edits materials against an empty stand-in group and swaps the real group in with one remap. The node keeps
+edits materials while the shared group is detached from its outputs (:func:`atmos_addon.nodes.surface.detached`):
+one edit re-attaches them at the end. The node keeps
 Blender's default name ("Group"): renaming a node fixes animation paths across the whole file and
 would be the slowest step; it is found by its tag. Removal deletes exactly the tagged nodes (and
 with them their links), so the user's node set and links come back unchanged.
@@ -25,6 +26,7 @@ with them their links), so the user's node set and links come back unchanged.
 
 from __future__ import annotations
 
+import contextlib
 import warnings
 from dataclasses import dataclass, field
 
@@ -38,7 +40,7 @@ from ..tree_edits import (TAG, active_of, copy_input, cycles_of, cycles_output, 
 SURFACE_GROUP = surface.SURFACE_GROUP
 ensure_surface_group = surface.ensure_surface_group
 NODE_LABEL = "Atmos Surface AOVs"
-#: Above this many materials per pass, the surface group is emptied while materials are edited (see inject_scene).
+#: Above this many materials per pass, the surface group is detached from its outputs while materials are edited.
 BULK_THRESHOLD = 16
 
 #: Tags of the three nodes that keep a surface opaque in Cycles when Cycles folds its shader away (:func:`keep_opaque`).
@@ -329,30 +331,6 @@ def follow_edits(edited) -> None:
         keep_opaque(material)
 
 
-def _stand_in():
-    """An empty group with the surface group's interface, used by nothing yet.
-
-    Every node edit in a material (or group) that holds AOV outputs makes Blender re-check all the
-    materials in the file, so bulk edits point the materials at this empty stand-in and swap the
-    real group in (or out) with one ``user_remap``.
-    """
-    tree = bpy.data.node_groups.new(SURFACE_GROUP + " (stand-in)", "ShaderNodeTree")
-    surface.surface_interface(tree)
-    return tree
-
-
-def _remove_stand_in(tree) -> None:
-    """Delete the stand-in once the remap has moved its users away.
-
-    With no users and nothing used by it (an interface, no nodes), the unlink pass of a plain remove,
-    which visits every data-block of the file (44 ms with 30 000 of them), has nothing to do and is skipped.
-    """
-    if tree.users:
-        bpy.data.node_groups.remove(tree)
-    else:
-        bpy.data.node_groups.remove(tree, do_unlink=False, do_id_user=False, do_ui_user=False)
-
-
 def inject(material, surface_group, tagged=None) -> None:
     """Add the Atmos surface group node to one node-based, editable material (idempotent).
 
@@ -416,32 +394,21 @@ def inject_scene(scene, aerial_group, *, only_new: bool = False, evaluations=("C
     if not todo and bpy.data.node_groups.get(SURFACE_GROUP) is None:
         return report  # nothing to inject: no group with zero users left in the file
     surface_group = surface.ensure_surface_group(aerial_group, evaluations)
-    target = _stand_in() if len(todo) > BULK_THRESHOLD else surface_group
-    for material, tagged in todo:
-        inject(material, target, tagged)
-        report.injected.append(material.name)
-    if target is not surface_group:
-        target.user_remap(surface_group)
-        _remove_stand_in(target)
+    with surface.detached(surface_group) if len(todo) > BULK_THRESHOLD else contextlib.nullcontext():
+        for material, tagged in todo:
+            inject(material, surface_group, tagged)
+            report.injected.append(material.name)
     return report
 
 
 def remove_all(materials) -> list[str]:
-    """Strip the Atmos nodes from ``materials``; the names of those that had them.
-
-    With many materials the shared group is swapped for an empty stand-in first (see :func:`_stand_in`).
-    """
+    """Strip the Atmos nodes from ``materials``; the names of those that had them (with many materials the shared group
+    detached meanwhile: :func:`.surface.detached`)."""
     surface_group = bpy.data.node_groups.get(SURFACE_GROUP)
-    stand_in = None
-    if surface_group is not None and len(materials) > BULK_THRESHOLD and surface_group.users:
-        stand_in = _stand_in()
-        surface_group.user_remap(stand_in)
+    bulk = surface_group is not None and len(materials) > BULK_THRESHOLD and surface_group.users
     stripped = []
-    for material in materials:
-        if material.library is None and material.node_tree is not None and remove(material):
-            stripped.append(material.name)
-    if stand_in is not None:
-        if stand_in.users:  # materials outside this pass keep the real group
-            stand_in.user_remap(surface_group)
-        _remove_stand_in(stand_in)
+    with surface.detached(surface_group) if bulk else contextlib.nullcontext():
+        for material in materials:
+            if material.library is None and material.node_tree is not None and remove(material):
+                stripped.append(material.name)
     return stripped
