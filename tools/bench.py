@@ -15,8 +15,8 @@ Four parts, each in its own process:
   (key tiles, .blend growth), a sun move and an atmosphere edit on the still one.
 * **Tables** (``tools/bench_tables.py``, this interpreter): the Precise tables and tile an atmosphere edit and a sun
   move bake, physics alone, on this machine's threads and on one.
-* **Scale** (``tools/bench_scale.py``, every ``--python-bin``): enable, parameter sync, preset load and disable
-  on 5000 materials / 20000 objects. Python wall time (``time.perf_counter``) of single calls in background
+* **Scale** (``tools/bench_scale.py``, every ``--python-bin``): enable, parameter sync, preset load, a mode switch
+  and disable on 5000 materials / 20000 objects. Python wall time (``time.perf_counter``) of single calls in background
   mode; the depsgraph evaluation that follows an edit in the interface is not included.
 
 This script collects the JSON each prints, prints the tables and writes ``docs/benchmarks.md`` with the command
@@ -68,6 +68,7 @@ ROWS = (
     ("sync_big_ms", "parameter change -> sync, {materials} materials (ms per update)", 5.0),
     ("preset_ms", "preset load + apply_atmosphere, enabled ({materials} materials)", 20.0),
     ("refresh_s", "refresh (nothing new)", None),
+    ("mode_switch_s", "mode switch Per Pixel -> Compositor -> Per Pixel (mean of the two)", None),
     ("disable_s", "disable", None),
 )
 

@@ -109,6 +109,10 @@ def main() -> None:
     orchestrator.refresh_effect(scene)
     results["refresh_s"] = time.perf_counter() - start
     start = time.perf_counter()
+    for mode in ("COMPOSITOR", "PER_PIXEL"):   # the setting's update callback: the outputs group rebuilt
+        scene.atmos.render_mode = mode
+    results["mode_switch_s"] = (time.perf_counter() - start) / 2.0
+    start = time.perf_counter()
     orchestrator.disable_effect(scene)
     results["disable_s"] = time.perf_counter() - start
     atmos_addon.unregister()

@@ -204,3 +204,36 @@ def test_the_numpy_builder_computes_what_blenders_nodes_compute():
     assert g.array(g.attribute("atmos_x")).tolist() == [1.0, 2.0, 3.0]
     with pytest.raises(TypeError):
         g.node("ShaderNodeMath")
+
+
+def test_the_compositor_builder_writes_a_colour_as_one_vector():
+    """The Per Pixel group's builder: a colour's arithmetic is one Vector Math node (not one Math node per channel),
+    arithmetic on constants builds nothing, three copies of one scalar are that scalar (its link broadcasts it), a
+    socket is separated once however often it is asked, and the parameters are the sockets it was given."""
+    import bpy
+
+    from atmos_addon.nodes.graph import COMPOSITOR_SEPARATE_XYZ, CompositorBuilder
+
+    tree = bpy.data.node_groups.new("Compositor builder", "CompositorNodeTree")
+    try:
+        group_in = tree.nodes.new("NodeGroupInput")
+        tree.interface.new_socket("Beta", in_out="INPUT", socket_type="NodeSocketVector")
+        tree.interface.new_socket("s", in_out="INPUT", socket_type="NodeSocketFloat")
+        beta, s = group_in.outputs["Beta"], group_in.outputs["s"]
+        g = CompositorBuilder(tree, {"atmos_beta": beta})
+        assert g.attribute("atmos_beta") == beta
+        before = len(tree.nodes)
+        assert g.mul((1.0, 2.0, 3.0), 2.0) == (2.0, 4.0, 6.0)
+        assert g.scale((1.0, 2.0, 3.0), -1.0) == (-1.0, -2.0, -3.0)
+        assert g.combine(0.5, 0.5, 0.5) == (0.5, 0.5, 0.5) and g.combine(s, s, s) == s
+        assert len(tree.nodes) == before
+        tau = g.scale(beta, s)
+        f_ex = g.power_per_channel(g.mul(tau, (2.0, 2.0, 2.0)), 0.5)
+        assert [(n.bl_idname, n.operation) for n in tree.nodes[before:]] == [
+            ("ShaderNodeVectorMath", "SCALE"), ("ShaderNodeVectorMath", "MULTIPLY"), ("ShaderNodeVectorMath", "POWER")]
+        assert g.separate(f_ex) == g.separate(f_ex)
+        assert sum(n.bl_idname == COMPOSITOR_SEPARATE_XYZ for n in tree.nodes) == 1
+        with pytest.raises(TypeError):
+            g.texture(None, 0.0, 0.0)
+    finally:
+        bpy.data.node_groups.remove(tree)
