@@ -67,6 +67,8 @@ ROWS = (
     ("sync_small_ms", "parameter change -> sync, {small} materials (ms per update)", 5.0),
     ("sync_big_ms", "parameter change -> sync, {materials} materials (ms per update)", 5.0),
     ("preset_ms", "preset load + apply_atmosphere, enabled ({materials} materials)", 20.0),
+    ("sun_move_s", "sun moved -> depsgraph update, Atmos's handler and its tile bake included", None),
+    ("sun_move_plain_s", "sun moved -> depsgraph update, without Atmos's handler (Blender alone)", None),
     ("refresh_s", "refresh (nothing new)", None),
     ("mode_switch_s", "mode switch Per Pixel -> Compositor -> Per Pixel (mean of the two)", None),
     ("disable_s", "disable", None),

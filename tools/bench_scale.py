@@ -66,6 +66,19 @@ def time_syncs(scene, repeats: int) -> float:
     return elapsed / repeats * 1000.0
 
 
+def time_sun_moves(scene, repeats: int) -> float:
+    """Median seconds of a depsgraph update after the sun lamp turns by 0.5 deg (in the background the Precise tile
+    is re-baked at once; the interface bakes 0.3 s after the last move)."""
+    sun = next(o for o in scene.objects if o.type == "LIGHT")
+    times = []
+    for _ in range(repeats):
+        sun.rotation_euler.x += math.radians(0.5)
+        start = time.perf_counter()
+        bpy.context.view_layer.update()
+        times.append(time.perf_counter() - start)
+    return sorted(times)[len(times) // 2]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--materials", type=int, default=5000)
@@ -99,6 +112,14 @@ def main() -> None:
         pstats.Stats(profile, stream=sys.stdout).sort_stats("tottime").print_stats(15)
     time_syncs(scene, 3)
     results["sync_big_ms"] = time_syncs(scene, args.repeats)
+    bpy.context.view_layer.update()   # the first evaluation after an enable (every edited material) is not timed
+    results["sun_move_s"] = time_sun_moves(scene, 3)
+    handlers = list(bpy.app.handlers.depsgraph_update_post)
+    bpy.app.handlers.depsgraph_update_post.clear()
+    try:
+        results["sun_move_plain_s"] = time_sun_moves(scene, 3)
+    finally:
+        bpy.app.handlers.depsgraph_update_post.extend(handlers)
     preset_times = []
     for name in ("overcast", "clear", "mars", "sunset"):
         start = time.perf_counter()
