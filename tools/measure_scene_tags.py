@@ -1,0 +1,77 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""What a depsgraph update costs in a large scene after each kind of edit Atmos's sync makes, and whether the
+evaluated scene then holds a custom property just written (what the groups' Attribute nodes and drivers read); and
+the first update after an enable (every edited material evaluated).
+
+    .venv/bpy-5.2.3/bin/python tools/measure_scene_tags.py [--materials 5000] [--objects 20000] [--repeats 3]
+
+The scene of ``tools/bench_scale.py`` with Atmos enabled (its default); each edit is made, then
+``view_layer.update()`` is timed (median of ``--repeats``). Wall time in background mode; not a test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import bpy  # noqa: E402
+
+import atmos_addon  # noqa: E402
+from atmos_addon.blender import orchestrator  # noqa: E402
+from bench_scale import build_scene  # noqa: E402
+
+PROBE = "atmos_probe"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--materials", type=int, default=5000)
+    parser.add_argument("--objects", type=int, default=20000)
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    atmos_addon.register()
+    scene = build_scene(args.materials, args.objects)
+    orchestrator.enable_effect(scene)
+    layer = bpy.context.view_layer
+    start = time.perf_counter()
+    layer.update()
+    first = time.perf_counter() - start
+    scene[PROBE] = 0.0
+    layer.update()
+    base = tuple(scene.atmos.mie_scattering_per_km)
+    edits = (
+        ("a scene custom property written, no tag", lambda k: None),
+        ("an Atmos setting (Mie scattering) written: its sync", lambda k: setattr(
+            scene.atmos, "mie_scattering_per_km", tuple(v * (1.0 + 0.01 * (k % 2 + 1)) for v in base))),
+        ("scene.render.fps written (Blender's own setting)", lambda k: setattr(scene.render, "fps", scene.render.fps)),
+        ("world.update_tag()", lambda k: scene.world.update_tag()),
+        ("scene.update_tag()", lambda k: scene.update_tag()),
+        ("scene.update_tag(refresh={'TIME'})", lambda k: scene.update_tag(refresh={"TIME"})),
+    )
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    print(f"Blender {bpy.app.version_string}, {args.materials} materials, {args.objects} objects, Atmos enabled; "
+          f"the first depsgraph update after the enable: {first:.2f} s")
+    print("| edit (and a custom property written) | depsgraph update, median | evaluated scene has the property |")
+    print("|---|---:|---|")
+    for label, edit in edits:
+        times, seen = [], True
+        for k in range(args.repeats):
+            value = scene[PROBE] + 1.0
+            scene[PROBE] = value
+            edit(k)
+            start = time.perf_counter()
+            layer.update()
+            times.append(time.perf_counter() - start)
+            seen = seen and depsgraph.scene_eval.get(PROBE) == value
+        print(f"| {label} | {statistics.median(times) * 1000:.0f} ms | {'yes' if seen else 'no'} |")
+    atmos_addon.unregister()
+
+
+if __name__ == "__main__":
+    main()
