@@ -98,6 +98,51 @@ def build_outputs_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None
     stamps.stamp(tree, stamps.SURFACE_OUTPUTS, modes_key(evaluations))
 
 
+def _add_per_pixel_outputs(nodes, links, alpha) -> None:
+    """The Per Pixel mode's AOVs: alpha s / 1000 (s the camera distance in m) and alpha v (v the view direction)."""
+    camera = nodes.new("ShaderNodeCameraData")
+    camera.location = (-500, -550)
+    metres = nodes.new("ShaderNodeAttribute")
+    metres.attribute_type = "VIEW_LAYER"
+    metres.attribute_name = METRES_PER_UNIT
+    metres.location = (-500, -700)
+    unit = nodes.new("ShaderNodeMath")
+    unit.operation = "MULTIPLY"
+    unit.inputs[1].default_value = 1.0 / DISTANCE_AOV_UNIT_M
+    unit.location = (-250, -650)
+    links.new(metres.outputs["Fac"], unit.inputs[0])
+    weight = nodes.new("ShaderNodeMath")
+    weight.operation = "MULTIPLY"
+    weight.location = (-50, -600)
+    links.new(alpha, weight.inputs[0])
+    links.new(unit.outputs[0], weight.inputs[1])
+    distance = nodes.new("ShaderNodeMath")
+    distance.operation = "MULTIPLY"
+    distance.location = (150, -560)
+    links.new(camera.outputs["View Distance"], distance.inputs[0])
+    links.new(weight.outputs[0], distance.inputs[1])
+    distance_aov = nodes.new("ShaderNodeOutputAOV")
+    distance_aov.aov_name = AOV_DISTANCE
+    distance_aov.location = (400, -560)
+    links.new(distance.outputs[0], distance_aov.inputs["Value"])
+    geometry = nodes.new("ShaderNodeNewGeometry")
+    geometry.location = (-500, -850)
+    toward = nodes.new("ShaderNodeMath")
+    toward.operation = "MULTIPLY"
+    toward.inputs[1].default_value = -1.0
+    toward.location = (-50, -800)
+    links.new(alpha, toward.inputs[0])
+    view = nodes.new("ShaderNodeVectorMath")
+    view.operation = "SCALE"
+    view.location = (150, -760)
+    links.new(geometry.outputs["Incoming"], view.inputs[0])
+    links.new(toward.outputs[0], view.inputs["Scale"])
+    view_aov = nodes.new("ShaderNodeOutputAOV")
+    view_aov.aov_name = AOV_VIEW
+    view_aov.location = (400, -760)
+    links.new(view.outputs[0], view_aov.inputs["Color"])
+
+
 def build_surface_group(tree, outputs_group, evaluations=("COMPOSITOR",)) -> None:
     """Build the material group in ``tree`` (its interface when missing): Group Input -> one group node of
     ``outputs_group`` (Opacity and Transparency linked), stamped for ``evaluations``."""
@@ -166,51 +211,6 @@ def aov_names(tree) -> set:
     for inner in inner_groups(tree):
         names |= aov_names(inner)
     return names
-
-
-def _add_per_pixel_outputs(nodes, links, alpha) -> None:
-    """The Per Pixel mode's AOVs: alpha s / 1000 (s the camera distance in m) and alpha v (v the view direction)."""
-    camera = nodes.new("ShaderNodeCameraData")
-    camera.location = (-500, -550)
-    metres = nodes.new("ShaderNodeAttribute")
-    metres.attribute_type = "VIEW_LAYER"
-    metres.attribute_name = METRES_PER_UNIT
-    metres.location = (-500, -700)
-    unit = nodes.new("ShaderNodeMath")
-    unit.operation = "MULTIPLY"
-    unit.inputs[1].default_value = 1.0 / DISTANCE_AOV_UNIT_M
-    unit.location = (-250, -650)
-    links.new(metres.outputs["Fac"], unit.inputs[0])
-    weight = nodes.new("ShaderNodeMath")
-    weight.operation = "MULTIPLY"
-    weight.location = (-50, -600)
-    links.new(alpha, weight.inputs[0])
-    links.new(unit.outputs[0], weight.inputs[1])
-    distance = nodes.new("ShaderNodeMath")
-    distance.operation = "MULTIPLY"
-    distance.location = (150, -560)
-    links.new(camera.outputs["View Distance"], distance.inputs[0])
-    links.new(weight.outputs[0], distance.inputs[1])
-    distance_aov = nodes.new("ShaderNodeOutputAOV")
-    distance_aov.aov_name = AOV_DISTANCE
-    distance_aov.location = (400, -560)
-    links.new(distance.outputs[0], distance_aov.inputs["Value"])
-    geometry = nodes.new("ShaderNodeNewGeometry")
-    geometry.location = (-500, -850)
-    toward = nodes.new("ShaderNodeMath")
-    toward.operation = "MULTIPLY"
-    toward.inputs[1].default_value = -1.0
-    toward.location = (-50, -800)
-    links.new(alpha, toward.inputs[0])
-    view = nodes.new("ShaderNodeVectorMath")
-    view.operation = "SCALE"
-    view.location = (150, -760)
-    links.new(geometry.outputs["Incoming"], view.inputs[0])
-    links.new(toward.outputs[0], view.inputs["Scale"])
-    view_aov = nodes.new("ShaderNodeOutputAOV")
-    view_aov.aov_name = AOV_VIEW
-    view_aov.location = (400, -760)
-    links.new(view.outputs[0], view_aov.inputs["Color"])
 
 
 def _outputs_current(tree, aerial_group, evaluations) -> bool:
