@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What a depsgraph update costs in a large scene after each kind of edit Atmos's sync makes, and whether the
 evaluated scene then holds a custom property just written (what the groups' Attribute nodes and drivers read); and
-the first update after an enable (every edited material evaluated).
+the first update after an enable (every edited material evaluated); and a sun move that reaches a world node by
+drivers on the sun object against one that writes and tags the scene.
 
     .venv/bpy-5.2.3/bin/python tools/measure_scene_tags.py [--materials 5000] [--objects 20000] [--repeats 3]
 
@@ -70,7 +71,50 @@ def main() -> None:
             times.append(time.perf_counter() - start)
             seen = seen and depsgraph.scene_eval.get(PROBE) == value
         print(f"| {label} | {statistics.median(times) * 1000:.0f} ms | {'yes' if seen else 'no'} |")
+    print()
+    print(sun_moves(scene, args.repeats))
     atmos_addon.unregister()
+
+
+def sun_moves(scene, repeats: int) -> str:
+    """A sun move with Atmos's handler removed: the world's tree holding a Combine XYZ whose inputs are driven by the
+    sun object's matrix (single-property drivers, no Python), then the same with the sun's direction also written as
+    a scene custom property and the scene tagged (what a sync does). The depsgraph update, median."""
+    import math
+
+    sun = next(o for o in scene.objects if o.type == "LIGHT")
+    combine = scene.world.node_tree.nodes.new("ShaderNodeCombineXYZ")
+    for index, socket in enumerate(combine.inputs):
+        driver = socket.driver_add("default_value").driver
+        driver.type = "AVERAGE"
+        variable = driver.variables.new()
+        variable.type = "SINGLE_PROP"
+        variable.targets[0].id_type = "OBJECT"
+        variable.targets[0].id = sun
+        variable.targets[0].data_path = f"matrix_world[{index}][2]"
+    handlers = list(bpy.app.handlers.depsgraph_update_post)
+    bpy.app.handlers.depsgraph_update_post.clear()
+    layer = bpy.context.view_layer
+    layer.update()
+    lines = ["| sun moved 0.5 deg, Atmos's handler removed | depsgraph update, median | driven z = the sun's z |",
+             "|---|---:|---|"]
+    try:
+        for label, tag in (("a world node driven by the sun object", False),
+                           ("the same, and the direction written to the scene and the scene tagged", True)):
+            times = []
+            for _ in range(repeats):
+                sun.rotation_euler.x += math.radians(0.5)
+                if tag:
+                    scene[PROBE + "_sun"] = tuple(sun.matrix_world.col[2][:3])
+                    scene.update_tag()
+                start = time.perf_counter()
+                layer.update()
+                times.append(time.perf_counter() - start)
+            follows = abs(combine.inputs[2].default_value - sun.matrix_world[2][2]) < 1e-6
+            lines.append(f"| {label} | {statistics.median(times) * 1000:.0f} ms | {'yes' if follows else 'no'} |")
+    finally:
+        bpy.app.handlers.depsgraph_update_post.extend(handlers)
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
