@@ -158,6 +158,23 @@ def test_a_bulk_pass_detaches_the_outputs_and_attaches_them_once(mode) -> None:
     assert not [g.name for g in bpy.data.node_groups if g.name.startswith("Atmos")]
 
 
+def test_a_pass_that_fails_midway_leaves_the_material_group_attached() -> None:
+    """An error inside a detached pass (a material that cannot be edited, say) must not leave the material group on
+    its empty stand-in: every material would then render without the atmosphere, silently."""
+    scene = bpy.context.scene
+    material = user_material()
+    mesh_object("A", material)
+    orchestrator.enable_effect(scene)
+    group = bpy.data.node_groups[materials.SURFACE_GROUP]
+    outputs = bpy.data.node_groups[surface.OUTPUTS_GROUP]
+    with pytest.raises(RuntimeError, match="midway"):
+        with surface.detached(group):
+            assert surface.outputs_node(group).node_tree != outputs
+            raise RuntimeError("midway")
+    assert surface.outputs_node(group).node_tree == outputs and _no_stand_in_left()
+    assert surface.aov_names(group) == set(MODE_AOVS[scene.atmos.render_mode])
+
+
 def test_a_material_group_of_the_older_layout_is_rebuilt_in_place_around_an_outputs_group() -> None:
     """A file saved before the outputs group (the AOV outputs inside "Atmos Surface AOVs" itself, its version 3): the
     next enable rebuilds that group in place as one node of "Atmos AOV Outputs"; the materials keep their group node
