@@ -50,6 +50,10 @@ RENDER_CONFIGS = (
     ("fast", "Atmos Compositor, Fast"),
     ("fast-per-pixel", "Atmos Per Pixel, Fast"),
 )
+#: What Eevee renders alone when its process for every configuration keeps crashing (Mesa's llvmpipe, December 2026:
+#: the six-configuration process crashed in every attempt of three bench runs; these four alone never did): the plain
+#: world, Blender's sky and Atmos's Precise level in both modes.
+EEVEE_FALLBACK_CONFIGS = ("off", "off-sky-texture", "precise-per-pixel", "precise")
 #: (engine, extra arguments) of the render part: Eevee renders through Mesa's llvmpipe on a CPU machine, so it
 #: is smaller and its figures are only a bound.
 RENDER_RUNS = (
@@ -173,8 +177,22 @@ def render_part(repeats: int, eevee_repeats: int) -> list[dict]:
             print(failure, flush=True)
             why = (f"killed by signal {-failure.returncode} in {SIGNAL_ATTEMPTS} attempts" if failure.returncode < 0
                    else f"exit status {failure.returncode}")
-            runs.append({"engine": engine, "failed": why, "arguments": list(extra)})
+            runs.append(_fallback_run(engine, extra, eevee_repeats, why))
     return runs
+
+
+def _fallback_run(engine: str, extra: tuple, repeats: int, why: str) -> dict:
+    """The :data:`EEVEE_FALLBACK_CONFIGS` alone after the run of every configuration failed (``why``), marked
+    ``partial``; a failed run if they fail too."""
+    arguments = ["--engines", engine, *extra, "--only", ",".join(EEVEE_FALLBACK_CONFIGS), "--repeats", str(repeats)]
+    try:
+        run = run_json_script(RENDER_SCRIPT, arguments)
+    except ScriptFailed as failure:
+        print(failure, flush=True)
+        return {"engine": engine, "failed": f"{why}; its four main configurations alone too", "arguments": list(extra)}
+    run["partial"] = (f"its process for every configuration was {why}; the {len(EEVEE_FALLBACK_CONFIGS)} "
+                      f"configurations shown ran alone in one process")
+    return run
 
 
 def render_markdown(runs: list[dict], repeats: int, eevee_repeats: int) -> str:
@@ -192,14 +210,16 @@ def render_markdown(runs: list[dict], repeats: int, eevee_repeats: int) -> str:
              "|---|" + "---:|---:|" * len(engines)]
     for config, label in RENDER_CONFIGS:
         cells = []
-        for engine, _ in engines:
+        for engine, run in engines:
             row = by.get((engine, config))
-            cells += (["failed", "-"] if row is None
+            missing = "not run" if "partial" in run else "failed"
+            cells += ([missing, "-"] if row is None
                       else [f"{row['median_s']:.2f} s", f"{row['ratio_sky_texture']:.2f}x"])
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
     blender = next(run["blender"] for run in runs if "blender" in run)
     failed = "".join(f" {engine.capitalize()} failed in this run: {run['failed']}." for engine, run in engines
                      if "failed" in run)
+    failed += "".join(f" {engine.capitalize()}: {run['partial']}." for engine, run in engines if "partial" in run)
     return "\n".join(lines) + (f"\n\nMedians of {repeats} interleaved Cycles repeats and {eevee_repeats} Eevee "
                                f"repeat(s) (Blender {blender}); target for Atmos's default: at most "
                                f"{RENDER_TARGET:.2f}x Blender's sky.{failed}")
