@@ -66,13 +66,16 @@ def time_syncs(scene, repeats: int) -> float:
     return elapsed / repeats * 1000.0
 
 
-def time_sun_moves(scene, repeats: int) -> float:
+def time_sun_moves(scene, repeats: int, after_move=None) -> float:
     """Median seconds of a depsgraph update after the sun lamp turns by 0.5 deg (in the background the Precise tile
-    is re-baked at once; the interface bakes 0.3 s after the last move)."""
+    is re-baked at once; the interface bakes 0.3 s after the last move); ``after_move(sun)`` runs between the move
+    and the update."""
     sun = next(o for o in scene.objects if o.type == "LIGHT")
     times = []
     for _ in range(repeats):
         sun.rotation_euler.x += math.radians(0.5)
+        if after_move is not None:
+            after_move(sun)
         start = time.perf_counter()
         bpy.context.view_layer.update()
         times.append(time.perf_counter() - start)

@@ -25,7 +25,7 @@ import bpy  # noqa: E402
 
 import atmos_addon  # noqa: E402
 from atmos_addon.blender import orchestrator  # noqa: E402
-from bench_scale import build_scene  # noqa: E402
+from bench_scale import build_scene, time_sun_moves  # noqa: E402
 
 PROBE = "atmos_probe"
 
@@ -80,8 +80,6 @@ def sun_moves(scene, repeats: int) -> str:
     """A sun move with Atmos's handler removed: the world's tree holding a Combine XYZ whose inputs are driven by the
     sun object's matrix (single-property drivers, no Python), then the same with the sun's direction also written as
     a scene custom property and the scene tagged (what a sync does). The depsgraph update, median."""
-    import math
-
     sun = next(o for o in scene.objects if o.type == "LIGHT")
     combine = scene.world.node_tree.nodes.new("ShaderNodeCombineXYZ")
     for index, socket in enumerate(combine.inputs):
@@ -94,24 +92,20 @@ def sun_moves(scene, repeats: int) -> str:
         variable.targets[0].data_path = f"matrix_world[{index}][2]"
     handlers = list(bpy.app.handlers.depsgraph_update_post)
     bpy.app.handlers.depsgraph_update_post.clear()
-    layer = bpy.context.view_layer
-    layer.update()
+    bpy.context.view_layer.update()
     lines = ["| sun moved 0.5 deg, Atmos's handler removed | depsgraph update, median | driven z = the sun's z |",
              "|---|---:|---|"]
+
+    def tag(sun) -> None:
+        scene[PROBE + "_sun"] = tuple(sun.matrix_world.col[2][:3])
+        scene.update_tag()
+
     try:
-        for label, tag in (("a world node driven by the sun object", False),
-                           ("the same, and the direction written to the scene and the scene tagged", True)):
-            times = []
-            for _ in range(repeats):
-                sun.rotation_euler.x += math.radians(0.5)
-                if tag:
-                    scene[PROBE + "_sun"] = tuple(sun.matrix_world.col[2][:3])
-                    scene.update_tag()
-                start = time.perf_counter()
-                layer.update()
-                times.append(time.perf_counter() - start)
+        for label, after_move in (("a world node driven by the sun object", None),
+                                  ("the same, and the direction written to the scene and the scene tagged", tag)):
+            seconds = time_sun_moves(scene, repeats, after_move)
             follows = abs(combine.inputs[2].default_value - sun.matrix_world[2][2]) < 1e-6
-            lines.append(f"| {label} | {statistics.median(times) * 1000:.0f} ms | {'yes' if follows else 'no'} |")
+            lines.append(f"| {label} | {seconds * 1000:.0f} ms | {'yes' if follows else 'no'} |")
     finally:
         bpy.app.handlers.depsgraph_update_post.extend(handlers)
     return "\n".join(lines)

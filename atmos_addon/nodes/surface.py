@@ -48,6 +48,12 @@ def surface_interface(tree) -> None:
     transparency.default_value, transparency.min_value, transparency.max_value = 0.0, 0.0, 1.0
 
 
+def _ensure_interface(tree) -> None:
+    """Give ``tree`` the Opacity and Transparency inputs when it lacks either (a new group)."""
+    if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
+        surface_interface(tree)
+
+
 def build_outputs_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None:
     """Build the outputs group in ``tree`` (its interface when missing): aerial group -> opacity weights -> AOV
     outputs; alpha = Opacity * (1 - Transparency).
@@ -56,8 +62,7 @@ def build_outputs_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None
     in-scattering AOVs; "PER_PIXEL": the distance and view AOVs) are built: Eevee compiles every AOV output
     of a material, declared or not (a group holding both took Eevee 417 s to compile where one took 2 s).
     """
-    if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
-        surface_interface(tree)
+    _ensure_interface(tree)
     nodes, links = tree.nodes, tree.links
     nodes.clear()
     group_in = nodes.new("NodeGroupInput")
@@ -146,8 +151,7 @@ def _add_per_pixel_outputs(nodes, links, alpha) -> None:
 def build_surface_group(tree, outputs_group, evaluations=("COMPOSITOR",)) -> None:
     """Build the material group in ``tree`` (its interface when missing): Group Input -> one group node of
     ``outputs_group`` (Opacity and Transparency linked), stamped for ``evaluations``."""
-    if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
-        surface_interface(tree)
+    _ensure_interface(tree)
     tree.nodes.clear()
     group_in = tree.nodes.new("NodeGroupInput")
     group_in.location = (-250, 0)
@@ -223,8 +227,7 @@ def ensure_outputs_group(aerial_group, evaluations=("COMPOSITOR",)):
     """Get or create the "Atmos AOV Outputs" group for ``evaluations`` (rebuilt in place when stale; callers detach
     it from a material group in use first, :func:`detached`)."""
     tree = stamps.group(stamps.SURFACE_OUTPUTS, replace_foreign=True)
-    if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
-        surface_interface(tree)
+    _ensure_interface(tree)
     if not _outputs_current(tree, aerial_group, evaluations):
         inner = inner_groups(tree)
         build_outputs_group(tree, aerial_group, evaluations)
@@ -237,8 +240,7 @@ def ensure_surface_group(aerial_group, evaluations=("COMPOSITOR",)):
     outputs of the ``evaluations`` in use. Each is rebuilt in place when stale, while detached (:func:`detached`): the
     materials' group nodes keep pointing at it, and they are re-checked once, not at every edit."""
     tree = stamps.group(stamps.SURFACE, replace_foreign=True)
-    if not ("Opacity" in tree.interface.items_tree and "Transparency" in tree.interface.items_tree):
-        surface_interface(tree)
+    _ensure_interface(tree)
     key = modes_key(evaluations)
     outputs = stamps.group(stamps.SURFACE_OUTPUTS, replace_foreign=True)
     node = outputs_node(tree) if tree.get(stamps.VERSION_KEY) == stamps.SURFACE.version else None
