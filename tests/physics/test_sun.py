@@ -118,3 +118,31 @@ def test_limb_darkened_visible_fraction():
     # With the centre half a radius below the horizon only the upper cap shows, next to the dark limb: a smaller
     # share of a darkened disk's flux than of its area.
     assert visible_disk_fraction(-0.5 * RHO, RHO, 0.6) < visible_disk_fraction(-0.5 * RHO, RHO, 0.0)
+
+
+@pytest.mark.parametrize("preset", ["clear", "overcast", "sunset", "mars"])
+def test_the_sun_table_interpolates_e_sun(preset):
+    """The table Blender's drivers read as the lamp moves (linear in the sine of the elevation) follows E_sun
+    within 0.2 % wherever the sun is lit enough to matter (over 1e-6 of noon), and within 2e-5 of noon's E_sun
+    everywhere, the disk's setting included; 0 once the disk has set."""
+    from atmos_addon.physics.sun import interpolate_sun_irradiance, sun_irradiance_table
+
+    atm = presets.load(preset).atmosphere
+    table = sun_irradiance_table(atm)
+    sines, rows = table
+    assert np.all(np.diff(sines) > 0.0) and rows[0].tolist() == [0.0, 0.0, 0.0]
+    # its rows are the physics' (the cached unit optical depths combined with the coefficients), to rounding
+    np.testing.assert_allclose(rows, sun_irradiance_ground(np.arcsin(sines), atm), rtol=1e-12, atol=1e-300)
+    edited = atm.replace(mie_scattering=2.0 * atm.mie_scattering)   # the same geometry: the cache's columns
+    np.testing.assert_allclose(sun_irradiance_table(edited)[1], sun_irradiance_ground(np.arcsin(sines), edited),
+                               rtol=1e-12, atol=1e-300)
+    elevation = np.linspace(-2.0 * RHO, np.pi / 2, 20001)
+    exact = sun_irradiance_ground(elevation, atm)
+    read = interpolate_sun_irradiance(table, np.sin(elevation))
+    noon = exact[-1]
+    assert np.max(np.abs(read - exact) / noon) < 2e-5
+    lit = (exact.min(axis=-1) > 1e-6 * noon.max()) & (elevation > RHO)
+    relative = np.max(np.abs(read - exact)[lit] / exact[lit])
+    print(f"\n{preset}: E_sun from the table, worst relative error {relative:.2e} above the disk's setting")
+    assert relative < 2e-3
+    np.testing.assert_array_equal(interpolate_sun_irradiance(table, np.sin([-0.5, -2.0 * RHO])), 0.0)
