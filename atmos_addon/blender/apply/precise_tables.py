@@ -137,22 +137,33 @@ def _link_image(image: bpy.types.Image) -> None:
 
 
 def _write_parameters(scene, origin: tuple[int, int], camera_altitude_m: float, tile: Tile, top_m: float,
-                      size: tuple[int, int], weight: float = 0.0) -> None:
+                      size: tuple[int, int], weight: float = 0.0) -> bool:
+    """Write the Precise parameters where they changed; True when any did (a written scene must be tagged for the
+    groups to read the values, and a tagged scene re-evaluates every object: a still scene's re-bake under a moved
+    sun writes the same values and only the image's pixels change)."""
     parameters = scene_reading.groups().parameters
-    scene[parameters.PRECISE_TILE] = (float(origin[0]), float(origin[1]), max(float(camera_altitude_m), 0.0))
-    scene[parameters.PRECISE_SCALE] = (float(tile.max_distance_m), float(top_m), float(weight))
-    scene[parameters.PRECISE_ATLAS] = (float(size[0]), float(size[1]), 0.0)
+    wrote = False
+    for name, value in ((parameters.PRECISE_TILE, (float(origin[0]), float(origin[1]),
+                                                   max(float(camera_altitude_m), 0.0))),
+                        (parameters.PRECISE_SCALE, (float(tile.max_distance_m), float(top_m), float(weight))),
+                        (parameters.PRECISE_ATLAS, (float(size[0]), float(size[1]), 0.0))):
+        if name not in scene or tuple(scene[name]) != value:   # stored as doubles: exact
+            scene[name] = value
+            wrote = True
+    return wrote
 
 
-def _clear_keys(scene) -> None:
-    """Remove the per-frame keys of the Precise parameters."""
+def _clear_keys(scene) -> bool:
+    """Remove the per-frame keys of the Precise parameters; True when there were any."""
     animation = scene.animation_data
     if animation is None or animation.action is None:
-        return
+        return False
     parameters = scene_reading.groups().parameters
     paths = {f'["{name}"]' for name in parameters.PRECISE_PARAMETER_NAMES}
-    for fcurve in [c for c in parameters.fcurves_of(animation.action) if c.data_path in paths]:
+    curves = [c for c in parameters.fcurves_of(animation.action) if c.data_path in paths]
+    for fcurve in curves:
         parameters.remove_fcurve(animation.action, fcurve)
+    return bool(curves)
 
 
 def bake(scene, *, force: bool = False) -> int:
@@ -182,12 +193,13 @@ def bake(scene, *, force: bool = False) -> int:
     image[_TILES] = len(tiles)
     scene[facts.KEY_TILES] = len(tiles)
     size = tuple(image.size)
-    _clear_keys(scene)
+    had_keys = _clear_keys(scene)
     top = atmosphere.atmosphere_height
     names = scene_reading.groups().parameters.PRECISE_PARAMETER_NAMES
     keyed = len({(altitude, elevation) for _, altitude, elevation in inputs}) > 1   # else one tile, constant values
+    wrote = had_keys or keyed
     for (frame, altitude, _), segment, weight in zip(inputs, path.segments, path.weights):
-        _write_parameters(scene, tile_origin(segment), altitude, tiles[segment], top, size, weight)
+        wrote = _write_parameters(scene, tile_origin(segment), altitude, tiles[segment], top, size, weight) or wrote
         if keyed:
             for name in names:
                 scene.keyframe_insert(f'["{name}"]', frame=frame)
@@ -195,7 +207,8 @@ def bake(scene, *, force: bool = False) -> int:
         _constant_interpolation(scene, names)
         scene.frame_set(scene.frame_current)   # re-evaluate the keyed values at the current frame
     _revalidate_drivers(scene)
-    scene.update_tag()
+    if wrote:
+        scene.update_tag()
     return len(tiles)
 
 
