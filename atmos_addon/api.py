@@ -89,6 +89,16 @@ def set_sun(scene, elevation_deg: float, azimuth_deg: float) -> None:
 
     with orchestrator.batch(scene):
         _point_sun(scene, elevation_deg, azimuth_deg)
+    _evaluate(scene)
+
+
+def _evaluate(scene) -> None:
+    """Evaluate ``scene``'s view layers. A script's new or moved objects have their world matrices only once the
+    depsgraph evaluates (until then a sun lamp's reads the identity: a sun at the zenith), and the values that
+    follow the sun are drivers on the lamp, which it evaluates: after a call that moved the sun, what the scene
+    holds is current. The interface evaluates before every operator and redraw; a script does not."""
+    for view_layer in scene.view_layers:
+        view_layer.update()
 
 
 def _point_sun(scene, elevation_deg: float | None, azimuth_deg: float | None) -> None:
@@ -110,6 +120,7 @@ def set_preset(scene, name_or_path) -> _presets.Preset:
     preset = load_preset(name_or_path)
     _ensure_registered()
     _apply_preset(scene, preset)
+    _evaluate(scene)
     return preset
 
 
@@ -145,10 +156,7 @@ def enable(scene, preset=None, *, sun_elevation_deg: float | None = None, sun_az
             _point_sun(scene, sun_elevation_deg, sun_azimuth_deg)
         for key, value in overrides.items():
             setattr(scene.atmos, key, value)
-    # A script's new or moved objects have their world matrices only once the depsgraph evaluates (until then a
-    # sun lamp's reads the identity: a sun at the zenith); the GUI evaluates before every operator, a script not.
-    for view_layer in scene.view_layers:
-        view_layer.update()
+    _evaluate(scene)
     return orchestrator.enable_effect(scene)
 
 

@@ -37,6 +37,7 @@ def on_depsgraph_update(scene, depsgraph) -> None:
     key_tiles = scene.get(facts.KEY_TILES)
     if sync.sun_moved(scene):
         orchestrator.update(scene)
+        _redraw_properties()   # the sun's values it shows are written without a tag, which would redraw it
     elif sync.note_camera(scene):   # the Precise tables follow the camera
         precise_tables.follow(scene)
     elif any(depsgraph.id_type_updated(kind) for kind in ("ACTION", "OBJECT", "SCENE")):
@@ -46,6 +47,15 @@ def on_depsgraph_update(scene, depsgraph) -> None:
         materials.follow_edits(edited)   # a surface Cycles folds away stays opaque
     if orchestrator.note_counts(scene):
         orchestrator.pick_up_new_materials(scene)
+
+
+def _redraw_properties() -> None:
+    """Redraw the Properties editors (the interface's; nothing to do in the background)."""
+    window_manager = bpy.context.window_manager
+    for window in getattr(window_manager, "windows", ()) if window_manager is not None else ():
+        for area in window.screen.areas:
+            if area.type == "PROPERTIES":
+                area.tag_redraw()
 
 
 @persistent

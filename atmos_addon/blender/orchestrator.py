@@ -5,9 +5,10 @@ The operators, the panel's switches, the API, the CLI and the handlers all come 
 (:func:`.facts.plan_of`) what to build and has each applier build its part: the material group and the nodes in
 every material (:mod:`.materials`, or :mod:`.in_render` in In-Render mode), the compositor (:mod:`.compositor`),
 the sky in the world (:mod:`.world`), the sun lamp (:mod:`.sun_lamp`), the haze domes (:mod:`.in_render`), the
-Precise tables (:mod:`.precise_tables`); then :mod:`.sync` writes the values the built nodes read, and
-:mod:`.sun_bake` keys an animated sun. :func:`update` runs after every settings edit: it rebuilds what the plan no
-longer matches (cheap when everything does) and writes the values. Disabling has every applier remove exactly what
+Precise tables (:mod:`.precise_tables`); then :mod:`.sync` writes the values the built nodes read and drives the
+sun's from the lamp (:mod:`.sun_drivers`), and :mod:`.sun_bake` records an animated sun for the key tiles.
+:func:`update` runs after every settings edit: it rebuilds what the plan no longer matches (cheap when everything
+does) and writes the values. Disabling has every applier remove exactly what
 it added. All of it is idempotent.
 """
 
@@ -21,7 +22,7 @@ import bpy
 
 from . import facts, group_integrity, migration, quality_choice, scene_reading, settings_io, sun_bake, sync
 from ..nodes import registry
-from .apply import compositor, in_render, materials, precise_tables, sun_lamp, world
+from .apply import compositor, in_render, materials, precise_tables, sun_drivers, sun_lamp, world
 
 #: Names of scenes whose ``enabled`` switch this module is setting (its update callback waits).
 _applying: set[str] = set()
@@ -288,7 +289,8 @@ def enable_effect(scene) -> Report:
     if not sun_bake.is_bake_current(scene):
         sun_bake.bake_sun_animation(scene)
     if scene.get(sun_bake.BAKED_KEY) is not None:
-        report.messages.append(f"Animated sun: baked to keyframes for frames {scene.frame_start}-{scene.frame_end}")
+        report.messages.append(f"Animated sun: its light follows the lamp on every frame, "
+                               f"{scene.frame_start}-{scene.frame_end} (drivers; no add-on needed to render)")
     if precise_tables.uses_precise(scene):
         bake_tables(scene)   # a no-op when its inputs are those of the last bake
         report.messages.append(precise_tables.describe())
@@ -381,6 +383,7 @@ def disable_effect(scene) -> list[str]:
     world.uninstall_sky(scene)
     registry.remove_unused()   # no Atmos orphans left in the file
     sun_bake.clear_baked_keys(scene)
+    sun_drivers.remove(scene)   # before the lamp's own values are put back: a driver would override them
     sun_lamp.restore_lamp(scene)
     scene_reading.groups().parameters.clear_shader_parameters(scene)
     precise_tables.remove(scene)

@@ -12,7 +12,7 @@ from .apply import precise_tables
 from .ui import cli_command, contact_sheet, operators, preset_ops
 from .ui import panel as ui_panel
 
-CLASSES = (*properties.CLASSES, *operators.CLASSES, *preset_ops.CLASSES, *contact_sheet.CLASSES, *sun_bake.CLASSES,
+CLASSES = (*properties.CLASSES, *operators.CLASSES, *preset_ops.CLASSES, *contact_sheet.CLASSES,
            *ui_panel.CLASSES)
 
 

@@ -1,11 +1,11 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Farm-safe sun animation: everything the sun drives, keyed per frame, and kept current as the scene is edited.
+"""An animated sun: what the Precise key tiles follow, kept current as the scene is edited.
 
 A sun lamp that moves over time (its own animation, a parent's, a constraint) changes the shader parameters and the
-lamp's colour and strength every frame. :func:`bake_sun_animation` keys them, one key per frame, so a render
-without the add-on (a farm) evaluates every frame without Python. The keys hold only the sun's own parameters
-(direction, E_sun, its optical depths) and the lamp's colour and strength; a digest of everything they depend on
-(:func:`bake_inputs`) is stored with them, and :func:`follow` bakes again when it changes.
+lamp's colour and strength every frame; drivers on the lamp evaluate them (:mod:`.apply.sun_drivers`), on a farm
+without the add-on too. An older Atmos keyed them per frame: :func:`clear_baked_keys` removes those keys.
+:func:`bake_sun_animation` records the animated range and a digest of everything the sun's motion depends on
+(:func:`bake_inputs`); :func:`follow` re-bakes an animated scene's Precise key tiles when it changes.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import hashlib
 import bpy
 import numpy as np
 
-from . import scene_reading, sync
+from . import scene_reading
 from .apply import precise_tables
 from .apply.sun_lamp import LAMP_PATHS
 from .debounce import Debounced
@@ -123,24 +123,23 @@ def bake_inputs(scene: bpy.types.Scene) -> str:
 
 
 def is_bake_current(scene: bpy.types.Scene) -> bool:
-    """True when the scene needs no sun bake (a still sun, none baked) or its bake is of the current inputs."""
+    """True when the scene needs no record (a still sun, none recorded) or its record is of the current inputs and
+    of the driven sun (a record of an older Atmos's per-frame keys is stale: its keys are removed)."""
     baked = scene.get(BAKED_KEY)
     if baked is None:
         return not scene_reading.is_sun_animated(scene)
-    return baked.get("inputs") == bake_inputs(scene)
+    return bool(baked.get("driven")) and baked.get("inputs") == bake_inputs(scene)
 
-
-_baking: set[str] = set()
 
 
 def follow(scene: bpy.types.Scene) -> None:
-    """After a sync or an edit: re-bake the sun's keys when their inputs changed (:func:`bake_inputs`): a slider, an
-    edited sun animation or a new frame range would otherwise be overridden by the old keys at every other frame
-    and in renders. At once in the background (scripts, the CLI; an animated Precise scene's tables too), else
-    0.3 s after the last change (:class:`.debounce.Debounced`), so a slider drag bakes once (the sun's keys only:
-    re-baking the Precise key tiles takes 0.4-0.8 s a tile, so the UI leaves them to Refresh). Cheap when
-    current (one digest of a few objects' animation)."""
-    if scene.name in _baking or is_bake_current(scene):
+    """After a sync or an edit: record the sun's animation again when its inputs changed (:func:`bake_inputs`: an
+    edited sun animation, a new frame range, a slider). In the background (scripts, the CLI) at once, with an
+    animated Precise scene's key tiles re-baked; in the interface 0.3 s after the last change
+    (:class:`.debounce.Debounced`), the record only (re-baking the key tiles takes 0.4-0.8 s a tile, so the UI leaves
+    them to Refresh). The sun's light itself needs nothing: its drivers follow every frame. Cheap when current
+    (one digest of a few objects' animation)."""
+    if is_bake_current(scene):
         return
     if bpy.app.background:
         rebake(scene)
@@ -149,8 +148,8 @@ def follow(scene: bpy.types.Scene) -> None:
 
 
 def rebake(scene: bpy.types.Scene, *, precise: bool = True) -> int:
-    """Bake the sun's keys again (:func:`bake_sun_animation`) and, with ``precise``, an animated scene's Precise
-    key tiles with them (0.4-0.8 s a tile); the number of frames baked."""
+    """Record the sun's animation again (:func:`bake_sun_animation`) and, with ``precise``, re-bake an animated
+    scene's Precise key tiles (0.4-0.8 s a tile); the number of frames of the animated range."""
     frames = bake_sun_animation(scene)
     if precise and precise_tables.uses_precise(scene) and precise_tables.moves(scene):
         precise_tables.bake(scene)
@@ -171,42 +170,24 @@ def cancel_pending() -> None:
 
 
 def bake_sun_animation(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int | None = None) -> int:
-    """Keyframe, one key per frame, everything the sun drives: shader parameters and the lamp's colour/strength.
+    """Record the animation of the sun that the Precise key tiles follow, and remove the per-frame keys an Atmos
+    before December 2026 wrote.
 
-    With the keys in the file, a render without the add-on (``blender -b file.blend -f N`` on a farm) evaluates
-    the sun's direction, E_sun, the sky and the lamp for every frame; no Python drivers are involved.
-    Keys are LINEAR (motion blur sub-frames interpolate). When the sun is not animated nothing is keyed and
-    earlier baked keys are removed. The current frame is restored. Returns the number of frames baked.
+    Nothing is keyed: the sun's direction and E_sun, and the lamp's colour and strength, are drivers on the lamp
+    (:mod:`.apply.sun_drivers`), which a render without the add-on (``blender -b file.blend -f N`` on a farm)
+    evaluates on every frame and sub-frame. What is stored is the frame range and a digest of the sun's motion and
+    the settings (:func:`bake_inputs`), which :func:`follow` compares to re-bake an animated scene's Precise key
+    tiles when they change. Returns the number of frames of the animated range (0 when the sun is not animated;
+    then nothing is recorded).
     """
     clear_baked_keys(scene)
     if not scene_reading.is_sun_animated(scene):
         return 0
-    inputs = bake_inputs(scene)
-    lamp = scene_reading.sun_object(scene)
     start = scene.frame_start if frame_start is None else int(frame_start)
     end = scene.frame_end if frame_end is None else int(frame_end)
     if end < start:
         raise ValueError(f"bake_sun_animation: frame_end {end} is before frame_start {start}")
-    parameters = scene_reading.groups().parameters
-    current, subframe = scene.frame_current, scene.frame_subframe
-    _baking.add(scene.name)
-    try:
-        for frame in range(start, end + 1):
-            scene.frame_set(frame)
-            sync.sync_scene(scene)
-            parameters.keyframe_shader_parameters(scene, frame)
-            if scene.atmos.drive_sun_lamp:
-                for path in LAMP_PATHS:
-                    lamp.data.keyframe_insert(path, frame=frame)
-    finally:
-        scene.frame_set(current, subframe=subframe)
-        _baking.discard(scene.name)
-    for idblock in (scene, lamp.data):
-        for fcurve in baked_fcurves(idblock):
-            for point in fcurve.keyframe_points:
-                point.interpolation = "LINEAR"
-    scene[BAKED_KEY] = {"lamp_data": lamp.data.name if scene.atmos.drive_sun_lamp else "", "start": start,
-                        "end": end, "inputs": inputs}
+    scene[BAKED_KEY] = {"driven": True, "start": start, "end": end, "inputs": bake_inputs(scene)}
     return end - start + 1
 
 
@@ -222,7 +203,8 @@ def baked_fcurves(idblock) -> list:
 
 
 def clear_baked_keys(scene: bpy.types.Scene) -> None:
-    """Remove the keys a previous :func:`bake_sun_animation` wrote (shader parameters and lamp data)."""
+    """Remove the record of :func:`bake_sun_animation` and the per-frame keys an older Atmos's bake wrote (shader
+    parameters and lamp data)."""
     baked = scene.get(BAKED_KEY)
     if baked is None:
         return
@@ -232,28 +214,3 @@ def clear_baked_keys(scene: bpy.types.Scene) -> None:
         for fcurve in baked_fcurves(idblock):
             remove(idblock.animation_data.action, fcurve)
     del scene[BAKED_KEY]
-
-
-class ATMOS_OT_bake_sun(bpy.types.Operator):
-    """Keyframe the sun's shader parameters and lamp colour/strength on every frame, so the animation renders
-    right without the add-on (render farms)"""
-
-    bl_idname = "atmos.bake_sun"
-    bl_label = "Bake Sun Animation"
-    bl_options = {"REGISTER", "UNDO"}
-
-    def execute(self, context):
-        scene = context.scene
-        try:
-            frames = bake_sun_animation(scene)
-        except (RuntimeError, ValueError, TypeError) as error:
-            self.report({"ERROR"}, f"Atmos could not bake the sun: {error}")
-            return {"CANCELLED"}
-        if frames:
-            self.report({"INFO"}, f"Atmos: sun baked on {frames} frame(s), {scene.frame_start}-{scene.frame_end}")
-        else:
-            self.report({"INFO"}, "Atmos: the sun lamp is not animated; nothing to bake (earlier keys removed)")
-        return {"FINISHED"}
-
-
-CLASSES = (ATMOS_OT_bake_sun,)

@@ -67,8 +67,9 @@ RETIRED_PARAMETER_NAMES = ("atmos_origin_altitude", "atmos_sun_optical_depth_ray
 #: The parameters only the Precise level reads (written by the add-on's table bake, keyed with constant
 #: interpolation when the camera or the sun moves, never by :func:`keyframe_shader_parameters`).
 PRECISE_PARAMETER_NAMES = (PRECISE_TILE, PRECISE_SCALE, PRECISE_ATLAS)
-#: The parameters that change with the sun (its direction and what its elevation sets): the only ones an animated
-#: sun's bake keys per frame. The others follow the settings, so a slider edit is not overridden by old keys.
+#: The parameters that change with the sun (its direction and what its elevation sets): with the effect on and a
+#: sun lamp, drivers on the lamp (:mod:`atmos_addon.blender.apply.sun_drivers`), which the sync never writes over;
+#: what :func:`keyframe_shader_parameters` keys by default for a script that animates the groups by hand.
 SUN_PARAMETER_NAMES = (SUN_DIRECTION, SUN_IRRADIANCE)
 #: Every parameter name, in the order of :func:`write_shader_parameters`' arguments, then the Precise ones.
 PARAMETER_NAMES = (*AERIAL_PARAMETER_NAMES, SUN_ANGULAR_RADIUS, SUN_LIMB_DARKENING, GROUND_ALBEDO,
@@ -152,13 +153,18 @@ def shader_parameter_values(*, beta_rayleigh: Sequence[float], beta_mie: Sequenc
     return values
 
 
-def write_shader_parameters(scene: bpy.types.Scene, **values) -> None:
-    """Store :func:`shader_parameter_values` (same keywords) as custom properties of ``scene``."""
+def write_shader_parameters(scene: bpy.types.Scene, skip: tuple[str, ...] = (), **values) -> bool:
+    """Store :func:`shader_parameter_values` (same keywords) as custom properties of ``scene``; the names in ``skip``
+    (driven ones) only where they are missing. Tags the scene when anything was written; True then."""
+    wrote = False
     for name, value in shader_parameter_values(**values).items():
         # Assign only on change: a write re-tags the scene, and keyframed values must not be clobbered needlessly.
-        if name not in scene or _as_tuple(scene[name]) != _as_tuple(value):
+        if name not in scene or (name not in skip and _as_tuple(scene[name]) != _as_tuple(value)):
             scene[name] = value
-    scene.update_tag()
+            wrote = True
+    if wrote:
+        scene.update_tag()
+    return wrote
 
 
 def _positive(name: str, value: float) -> float:

@@ -601,9 +601,12 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     assert bpy.data.node_groups["Atmos Aerial Perspective"].users == 1
     orchestrator.disable_effect(other)
     bpy.data.scenes.remove(other)
-    scene["atmos_sun_irradiance"] = (1.0, 2.0, 3.0)   # what sync writes; the driver reads it
+    scene["atmos_mie_g"] = (0.1, 0.2, 0.3)   # what sync writes; the driver reads it
     scene.frame_set(scene.frame_current)
-    assert tuple(round(v, 6) for v in node.inputs["Sun Irradiance (W/m^2)"].default_value) == (1.0, 2.0, 3.0)
+    assert tuple(round(v, 6) for v in node.inputs["Mie Anisotropy g"].default_value) == (0.1, 0.2, 0.3)
+    # E_sun is itself driven by the sun lamp: the group's input follows it through the scene's property
+    assert tuple(node.inputs["Sun Irradiance (W/m^2)"].default_value) == pytest.approx(
+        tuple(scene["atmos_sun_irradiance"]), rel=1e-6)
     scene.atmos.render_mode = "COMPOSITOR"
     node = compositor.current_tree(scene).nodes[compositor.COMPOSITE_NODE]
     assert node.node_tree.name == compositor.GROUP_NAME

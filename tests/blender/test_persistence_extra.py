@@ -264,17 +264,25 @@ def test_a_parameter_change_costs_little_and_does_not_grow_with_materials() -> N
     assert many < few * 2.0 + 0.002, (few, many)
 
 
-def test_sync_reuses_the_sun_irradiance_until_the_atmosphere_or_sun_changes(monkeypatch) -> None:
+def test_sync_remakes_the_sun_table_only_when_what_e_sun_depends_on_changes(monkeypatch) -> None:
+    """The sun's drivers read an E_sun table: remade on an edit of the air (0.7 ms), kept for any other edit and
+    for a sun move, which computes no E_sun in Python at all (the panel's value is read from the table)."""
     scene = _enabled_scene(n_materials=1, sky=False)
     calls = []
     original = sync.sun_irradiance_ground
     monkeypatch.setattr(sync, "sun_irradiance_ground", lambda *a, **k: calls.append(1) or original(*a, **k))
+    tables = []
+    original_table = sync.sun_irradiance_table
+    monkeypatch.setattr(sync, "sun_irradiance_table", lambda *a, **k: tables.append(1) or original_table(*a, **k))
     scene.atmos.distance_scale = 3.0
-    assert calls == []
+    scene.atmos.mie_g = (0.5, 0.5, 0.5)   # E_sun does not depend on the haze's anisotropy: its table is kept
+    assert tables == []
     before = tuple(scene["atmos_sun_irradiance"])
+    display = scene.atmos.sun_strength_display
     scene.atmos.rayleigh_scattering_per_km = tuple(v * 2.0 for v in scene.atmos.rayleigh_scattering_per_km)
-    assert len(calls) == 1
+    assert len(tables) == 1 and scene.atmos.sun_strength_display < display
+    bpy.context.view_layer.update()   # the drivers read the new table
     assert tuple(scene["atmos_sun_irradiance"]) != before
     bpy.data.objects["Sun"].rotation_euler.x = 1.2
     bpy.context.view_layer.update()
-    assert len(calls) == 2
+    assert len(tables) == 1 and calls == []   # the sun moved: the table kept, no E_sun computed in Python

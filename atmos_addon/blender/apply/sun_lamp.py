@@ -8,7 +8,8 @@ Direction to the sun for elevation e and azimuth A (clockwise from +Y, north, to
 (a sun lamp shines along its local -Z, so its local +Z is d). The lamp's colour and strength are the
 ground irradiance E_sun (:func:`~atmos_addon.physics.sun.sun_color_and_strength`): strength = luminance of
 E_sun in W/m^2, colour = E_sun / strength, so colour x strength == E_sun, the E_sun the sky and the haze
-use; its angle is the sun's angular diameter. An animated sun is baked to keyframes by :mod:`.sun_bake`.
+use; its angle is the sun's angular diameter. With the effect on, the colour and strength are drivers that
+follow the lamp's elevation (:mod:`.sun_drivers`), on every frame of an animated sun.
 """
 
 from __future__ import annotations
@@ -88,8 +89,10 @@ def differs(old, new) -> bool:
     return bool(np.any(np.abs(old - new) > WRITE_TOLERANCE * np.maximum(np.abs(new), 1e-3)))
 
 
-def drive_lamp(scene: bpy.types.Scene, lamp: bpy.types.Object, colour, strength: float, angle: float) -> bool:
-    """Write colour, strength and angle to the lamp's light data where they changed; True if anything was written.
+def drive_lamp(scene: bpy.types.Scene, lamp: bpy.types.Object, colour, strength: float, angle: float, *,
+               driven: bool = False) -> bool:
+    """Write colour, strength and angle to the lamp's light data where they changed (with ``driven``, the angle
+    only: colour and strength are drivers, :mod:`.sun_drivers`); True if anything was written.
 
     Comparing first keeps the depsgraph handler from feeding itself (every write re-tags the light).
     The first write remembers the lamp's own values in the scene so :func:`restore_lamp` can put them back.
@@ -100,7 +103,8 @@ def drive_lamp(scene: bpy.types.Scene, lamp: bpy.types.Object, colour, strength:
         state.update(lamp=lamp.name, color=tuple(light.color), energy=float(light.energy), angle=float(light.angle))
         scene[LAMP_STATE_KEY] = state
     wrote = False
-    for name, value in (("color", colour), ("energy", strength), ("angle", angle)):
+    for name, value in ((("angle", angle),) if driven else (("color", colour), ("energy", strength),
+                                                               ("angle", angle))):
         if differs(getattr(light, name), value):
             setattr(light, name, value)
             wrote = True

@@ -255,7 +255,6 @@ class ATMOS_PT_atmosphere_sun(_SubPanel, bpy.types.Panel):
         ground.prop(settings, "sun_strength_display", text="W/m\u00b2")
         column.separator()
         column.prop(settings, "drive_sun_lamp")
-        column.operator("atmos.bake_sun", icon="LIGHT_SUN")
 
 
 class ATMOS_PT_atmosphere_sky(_SubPanel, bpy.types.Panel):
