@@ -73,6 +73,8 @@ ROWS = (
     ("preset_ms", "preset load + apply_atmosphere, enabled ({materials} materials)", 20.0),
     ("sun_move_s", "sun moved -> depsgraph update, Atmos's handler and its tile bake included", None),
     ("sun_move_plain_s", "sun moved -> depsgraph update, without Atmos's handler (Blender alone)", None),
+    ("sun_turn_s", "sun turned in azimuth (no table re-baked) -> depsgraph update, with Atmos", None),
+    ("sun_turn_handler_s", "the same: Atmos's handler alone (Python)", 50.0),
     ("refresh_s", "refresh (nothing new)", None),
     ("mode_switch_s", "mode switch Per Pixel -> Compositor -> Per Pixel (mean of the two)", None),
     ("disable_s", "disable", None),
@@ -363,37 +365,69 @@ BSDF), a camera and a sun lamp. The sync rows time {repeats} writes of `scene.at
 NOTES = """## What the numbers say
 
 - **Parameter changes** cost the same with 10 or 5000 materials: a sync writes seven scene custom
-  properties (plus the sun lamp and the world's sky values) and never touches a material.
+  properties (plus the world's sky values) and never touches a material. An edit of the air or the haze also remakes
+  the E_sun table the sun's drivers read (`physics.sun.sun_irradiance_table`, 0.7 ms: its optical depths per unit
+  coefficient are kept per geometry) and rewrites their keys: 4.6-5.5 ms a sync against 3.4-4.4 ms before the
+  drivers (5.2.3, interleaved A/B of `tools/bench_scale.py`, two runs each, this run's machine).
 - **Enable** is dominated by adding one group node per material. Per material two RNA edits remain,
   `nodes.new` and the `node.node_tree` write; every other access is a read (node locations and widths with
-  one `foreach_get` each, the new location with one `foreach_set`, which skips the node-tree update), and
-  one `user_remap` swaps the real group in for all materials at once (0.18-0.25 s with 5000 materials and
-  20000 objects). The empty stand-in group is then removed without Blender's unlink pass, which visits every
-  data-block of the file and has nothing to unlink there (44 ms -> 0).
+  one `foreach_get` each, the new location with one `foreach_set`, which skips the node-tree update). The material
+  group ("Atmos Surface AOVs") holds one node, of the group with the AOV outputs ("Atmos AOV Outputs"); during the
+  pass that node instances an empty stand-in (`nodes.surface.detached`), so no material's edit re-checks the others,
+  and one edit at the end points it back: 0.15 s with 5000 materials, where a `user_remap` of every material's node
+  from a stand-in to the real group took 0.31-0.37 s (5.2.3, 5.3.0; it visits every data-block of the file).
+  The empty stand-in group is then removed without Blender's unlink pass, which has nothing to unlink there
+  (44 ms -> 0). The same detaching makes a **mode switch** rebuild only the outputs group, re-checking the materials
+  once: 1.9-2.2 s (5.5-5.7 s before, on 5.2.3: every node of the rebuilt group re-checked 5000 materials), most of
+  it now the depsgraph update that reads the camera (the setting just written re-evaluates every object).
+  An interleaved A/B on 5.2.3 (this `tools/bench_scale.py` run in a worktree of the code before, 676c506, and in this
+  one, twice each, while other work loaded the machine): enable 1.74-1.90 s -> 1.01-1.11 s, mode switch
+  5.54-5.69 s -> 2.53-2.85 s, disable 0.91-1.18 s -> 0.85-0.95 s.
 - **Per edit**: `tools/bench_node_edits.py` times the two edits against the file's size: `nodes.new` 26-27 us and
   the `node_tree` write 22 us in 4.5.15, 22 us and 19 us in 5.2.3 and 5.3.0, the same with 1000 and with 5000
   materials, so an enable grows linearly with the materials.
-- **The 1 s target**: missed on every version since Precise with multiple scattering became the default
-  (December 2026): 5.0-6.4 s then, 1.2-1.4 s before the Per Pixel default, 1.5-2.1 s with it. That mode builds
-  its compositor group (396 nodes at Precise, one Math node per channel) where the Compositor mode built the
-  241-node shader group: 0.45 s against 0.10 s (`tools/bench_group_builds.py`, 5.2.3), because every node and
-  link Blender adds re-runs the tree's update over the nodes already there (a node 0.07 ms into a 100-node tree,
-  0.33 ms into 400, 3.6 ms into 1600), once per file and feature set; the rest of the spread is the machine (the
-  same code measured 1.48 s on 4.5 and 2.11 s on 5.2 in one run). The cProfile of enable on 5.2.3
-  (`.venv/bpy-5.2.3/bin/python tools/bench_scale.py --profile`) showed 3.0 s in `enable_effect`'s own calls into
+- **The 1 s target**: 1.01-1.11 s in this run on the three versions (1.48-2.11 s in the last one), still over it
+  by a tenth. Since Precise with multiple scattering became the default (December 2026) it was 5.0-6.4 s, then
+  1.2-1.4 s before the Per Pixel default, 1.5-2.1 s with it. That mode builds its compositor group, which was
+  written one Math node per channel (396 nodes at Precise, 0.45-0.91 s) and is now one Vector Math node per colour
+  operation, as the shader groups are (220 nodes, 0.13-0.27 s; `tools/bench_group_builds.py`, 5.2.3): every node
+  and link Blender adds re-runs the tree's update over the nodes already there (a node 0.07 ms into a 100-node
+  tree, 0.33 ms into 400, 3.6 ms into 1600), so a build costs the square of its size. What is left (cProfile,
+  `.venv/bpy-5.2.3/bin/python tools/bench_scale.py --profile`, 1.12 s): the material pass 0.80 s (Blender's two
+  edits per material about 0.35 s, the one attach 0.15 s, the rest Python reading each material's outputs and
+  alpha), the Per Pixel, sky and camera sky groups 0.30 s. Skipping a node property write that would not change
+  the value (each write re-runs the tree's update) took 8 % off the group builds (an interleaved A/B of six builds).
+  Earlier, a cProfile of enable on 5.2.3 (the same command) showed 3.0 s in `enable_effect`'s own calls into
   Blender: the depsgraph update that reads the camera's matrix, which re-evaluated every object because the
   scene's properties had just been written, and in it the depsgraph handler's bake, whose link of the table image
   into the aerial group was cheap only because no material used the group yet. Updating first moved the 3 s to
   that link (pointing a group that 5000 materials use at a new image re-evaluates all of them). Now the update
   comes before the first write (it evaluates only what a script moved), the tables are baked before the materials
   (the groups link the image as they are built) and a table that needs more key tiles grows its image in place
-  (`image.scale`), so its nodes never need re-pointing: the material pass (0.9-1.0 s) is what is left. The first
-  depsgraph evaluation after an enable (2.7 s here: every edited material) is Blender's, paid by the next redraw
-  or render whatever Atmos does; Refresh's row is that evaluation, its update coming first. A preset load changes
-  the atmosphere and so re-bakes the tables (the sun table's grids are kept when only coefficients change; the
+  (`image.scale`), so its nodes never need re-pointing: the material pass (0.9-1.0 s then) was what was left. The first
+  depsgraph evaluation after an enable (2.7 s then: every edited material) is Blender's, paid by the next redraw
+  or render whatever Atmos does (2.41 s on 5.2.3, `tools/measure_scene_tags.py`, below); the scale script
+  evaluates it untimed before the sun-move rows, so since this run Refresh's row (0.5-0.7 s, 2.0-2.9 s before) no
+  longer holds it. A preset load changes the atmosphere and so re-bakes the tables (the sun table's grids are kept when only coefficients change; the
   multiple-scattering table 1.4-1.6 s on 2 cores since its orders are solved by GMRES and its altitudes built on
   threads, 4 s before; the tile 0.4-0.5 s, 0.75 s before: `tools/bench_tables.py`, above) instead of the 20 ms
   target.
+- **A lead for the 1 s atmosphere edit** (not taken yet: it moves the accuracy bench's numbers, which would be
+  measured again with it): the multiple-scattering table's cost is in its altitude rows and the steps along each
+  ray, and the low suns are what its resolution serves. `.venv/bpy-5.2.3/bin/python tools/measure_ms_resolution.py`
+  (the largest change of the default's pixel luminance per case, %, the table alone changed):
+
+  | table | build | day cases | sunsets | Mars noon / sunset | blue hour | overcast, 1 deg sun |
+  |---|---:|---:|---:|---:|---:|---:|
+  | default (32 altitudes, 33 sun cosines, 24 steps) | 1.70 s | 0 | 0 | 0 / 0 | 0 | 0 |
+  | 24 altitudes | 1.15 s | <= 0.05 | 0.15 / 0.41 | 0.03 / 0.22 | 0.44 | 1.36 |
+  | 25 sun cosines | 1.10 s | <= 0.06 | 0.57 / 1.78 | 0.30 / 1.10 | 2.02 | 2.86 |
+  | 16 steps | 1.21 s | <= 0.09 | 0.04 / 0.13 | 0.01 / 0.07 | 0.29 | 2.12 |
+  | 24 altitudes and 16 steps | 0.82 s | <= 0.10 | 0.12 / 0.30 | 0.01 / 0.14 | 0.15 | 1.53 |
+  | 12 azimuths, 5 zenith angles | 1.10 s | <= 0.55 | 3.57 / 1.19 | 0.43 / 9.50 | 2.65 | 0.27 |
+
+  24 altitudes and 16 steps halve the table for changes under 0.5 % everywhere but the overcast low sun (1.5 %,
+  against its 6.5 % from the reference): with the tile's 0.4 s, an atmosphere edit of about 1.3 s.
 - Enable also checks each material once for a surface Cycles folds away
   (`materials.keep_opaque`): about 5 us per material (`inject` 85-86 us against 80-81 us without it, 3000
   materials, 5.2.3, two alternating runs).
@@ -403,7 +437,35 @@ NOTES = """## What the numbers say
   all 5000 users).
 - **Node groups**: the aerial and sky groups (about 330 nodes) are laid out in Python and written with one
   `foreach_set` per group.
-- **Disable** is one `nodes.remove` per material.
+- **Disable** is one `nodes.remove` per material, the material group detached meanwhile.
+- **A sun move in a large scene** now tags nothing. The sun's direction and E_sun, and the lamp's colour and
+  strength, are drivers on the lamp (`blender/apply/sun_drivers.py`, docs/sky_and_sun.md): Blender evaluates them in
+  the depsgraph update of the move itself, and what Atmos still writes on a move (the sun's status and the ground
+  sunlight the panel shows) goes in as ID properties, which tag nothing. A sun turned in azimuth (no table depends
+  on it) costs a depsgraph update of 100-102 ms with 20000 objects against 84-94 ms for Blender alone, Atmos's
+  handler 10-11 ms of it (the rows above); turned in elevation it also re-bakes the Precise tile, at once in the
+  background (0.68-0.79 s the move, tile included, against 1.20-1.29 s before the drivers: 5.2.3, interleaved A/B,
+  two runs each), 0.3 s after the last move in the interface. Before, each move's sync wrote the shader parameters
+  and tagged the scene, and a tagged scene re-evaluates every object;
+  `.venv/bpy-5.2.3/bin/python tools/measure_scene_tags.py` measured what each tag costs (5000 materials, 20000
+  objects, Atmos on, the depsgraph update after each edit, median of 3; stop 44, a second run 473 ms, 242 ms,
+  262 ms, 442 ms and 163 ms for the rows after the first):
+
+  | edit (and a custom property written) | depsgraph update | evaluated scene has the property |
+  |---|---:|---|
+  | a scene custom property written, no tag | 0 ms | no |
+  | an Atmos setting (Mie scattering) written: its sync | 431 ms | yes |
+  | `scene.render.fps` written (Blender's own setting) | 173 ms | yes |
+  | `world.update_tag()` | 255 ms | no |
+  | `scene.update_tag()` (what the sync did on a sun move) | 444 ms | yes |
+  | `scene.update_tag(refresh={'TIME'})` | 176 ms | yes |
+
+  Scene custom properties driven by the sun object cost a move nothing more: 83 ms against 80 ms for the bare move
+  (three drivers on the direction and three E_sun lookups, checked once in that scene before building them). The
+  Precise tile's bake no longer tags the scene when its parameters are unchanged (a still scene's tile under a
+  moved sun: only the image's pixels change; the update after it was 426 ms, now 0). What is left of the target is
+  the re-bake: the tile is camera-centred and baked for one sun elevation, so an elevation change needs a new one;
+  tables that do not depend on the sun (Bruneton's or Hillaire's parametrisations) would remove it.
 - The numbers move by up to 2x with other work on the machine (see the load average above), and between days
   on the same quiet machine: stop 20 measured the 10-material sync at 0.84 ms and 5.0's enable at 964-968 ms;
   stop 21's two runs, load average below 1, 2.3-3.2 ms and 1.14-1.25 s with the same sync code and a leaner
