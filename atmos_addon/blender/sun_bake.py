@@ -131,7 +131,6 @@ def is_bake_current(scene: bpy.types.Scene) -> bool:
     return bool(baked.get("driven")) and baked.get("inputs") == bake_inputs(scene)
 
 
-
 def follow(scene: bpy.types.Scene) -> None:
     """After a sync or an edit: record the sun's animation again when its inputs changed (:func:`bake_inputs`: an
     edited sun animation, a new frame range, a slider). In the background (scripts, the CLI) at once, with an

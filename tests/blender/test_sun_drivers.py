@@ -171,3 +171,26 @@ def test_a_file_with_an_older_atmos_s_per_frame_sun_keys_loses_them(addon, tmp_p
     for frame in (1, 3):
         scene.frame_set(frame)
         np.testing.assert_allclose(scene["atmos_sun_direction"], lamp.matrix_world.col[2][:3], atol=1e-6)
+
+
+def test_a_lamp_a_rig_drives_keeps_its_drivers(addon):
+    """A light whose strength a rig drives keeps that driver through enable and disable: Atmos drives the scene's sun
+    parameters but leaves the light's colour and strength to the rig."""
+    scene = addon
+    lamp = _scene(scene)
+    scene["rig_strength"] = 7.0
+    curve = lamp.data.driver_add("energy")
+    curve.driver.type = "AVERAGE"
+    variable = curve.driver.variables.new()
+    variable.targets[0].id_type = "SCENE"
+    variable.targets[0].id = scene
+    variable.targets[0].data_path = '["rig_strength"]'
+    orchestrator.enable_effect(scene)
+    bpy.context.view_layer.update()
+    assert _driven(scene) >= SUN_PATHS and _driven(lamp.data) == {("energy", 0)}
+    assert sun_drivers.state(scene)["light"] == "" and lamp.data.energy == pytest.approx(7.0)
+    assert lamp.data.animation_data.drivers[0].driver.variables[0].targets[0].data_path == '["rig_strength"]'
+    orchestrator.disable_effect(scene)
+    assert _driven(lamp.data) == {("energy", 0)} and not _driven(scene)
+    bpy.context.view_layer.update()
+    assert lamp.data.energy == pytest.approx(7.0)

@@ -115,13 +115,14 @@ def install(scene, lamp, table: tuple[np.ndarray, np.ndarray], *, drive_light: b
     """Drive ``scene``'s sun direction and E_sun from ``lamp`` (and, with ``drive_light``, the lamp's colour and
     strength from E_sun), the E_sun keys from ``table`` (:func:`~atmos_addon.physics.sun.sun_irradiance_table`).
 
-    The two parameters must exist (written once by the sync). Idempotent: drivers already on this lamp with this
-    table are left alone; True when anything was (re)written."""
+    The two parameters must exist (written once by the sync). A light whose colour or strength a rig already drives
+    (drivers Atmos did not write) keeps them: its colour and strength are left to the rig. Idempotent: drivers
+    already on this lamp with this table are left alone; True when anything was (re)written."""
     parameters = scene_reading.groups().parameters
-    light = lamp.data if drive_light else None
+    recorded = state(scene)
+    light = lamp.data if drive_light and not _driven_by_user(lamp.data, recorded) else None
     table_digest = digest(table)
     wanted = {"lamp": lamp.name, "light": light.name if light is not None else "", "table": table_digest}
-    recorded = state(scene)
     if recorded == wanted and _present(scene, lamp, light):
         return False
     rebuild = recorded is None or recorded.get("lamp") != wanted["lamp"] or not _present(scene, lamp, None)
@@ -151,6 +152,14 @@ def install(scene, lamp, table: tuple[np.ndarray, np.ndarray], *, drive_light: b
         _remove_light_drivers(bpy.data.lights.get(recorded["light"]))
     scene[STATE_KEY] = wanted
     return True
+
+
+def _driven_by_user(light, recorded: dict | None) -> bool:
+    """True when ``light``'s colour or strength has drivers that Atmos did not write (a rig's)."""
+    if recorded is not None and recorded.get("light") == light.name:
+        return False
+    drivers = light.animation_data.drivers if light.animation_data is not None else ()
+    return any(curve.data_path in ("color", "energy") for curve in drivers)
 
 
 def _present(scene, lamp, light) -> bool:

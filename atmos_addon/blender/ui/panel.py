@@ -115,8 +115,6 @@ def _split(layout):
     return layout
 
 
-
-
 #: Widest label text, px at Blender's 11 px interface font and scale 1, that the property-split label column shows
 #: uncut at the Properties editor's default width: Blender's factory layout on a 1920 x 1080 screen gives it 339 px
 #: (region 309 px, label room about 92 px at scale 1, measured by tools/verify_panel.py in GUI Blender 5.2.2).
