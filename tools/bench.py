@@ -386,8 +386,10 @@ NOTES = """## What the numbers say
 - **Per edit**: `tools/bench_node_edits.py` times the two edits against the file's size: `nodes.new` 26-27 us and
   the `node_tree` write 22 us in 4.5.15, 22 us and 19 us in 5.2.3 and 5.3.0, the same with 1000 and with 5000
   materials, so an enable grows linearly with the materials.
-- **The 1 s target**: 1.01-1.11 s in this run on the three versions (1.48-2.11 s in the last one), still over it
-  by a tenth. Since Precise with multiple scattering became the default (December 2026) it was 5.0-6.4 s, then
+- **The 1 s target**: 1.50-1.57 s in this run on the three versions, on another machine than the last run's (an
+  Intel Xeon where that one was an AMD EPYC, 1.01-1.11 s): this stop changed nothing in the enable, and the code
+  before and after it, interleaved on this machine (5.2.3, `tools/bench_scale.py`, two runs each), measured
+  1.53-1.59 s and 1.55-1.59 s; building the scene itself went from 4.9-5.0 s to 6.5-6.9 s. Since Precise with multiple scattering became the default (December 2026) it was 5.0-6.4 s, then
   1.2-1.4 s before the Per Pixel default, 1.5-2.1 s with it. That mode builds its compositor group, which was
   written one Math node per channel (396 nodes at Precise, 0.45-0.91 s) and is now one Vector Math node per colour
   operation, as the shader groups are (220 nodes, 0.13-0.27 s; `tools/bench_group_builds.py`, 5.2.3): every node
