@@ -205,7 +205,7 @@ def _drop_tables(scene) -> None:
 
 
 def _follow_tables_and_keys(scene) -> None:
-    """The Precise tables and an animated sun's keys follow the values just written: baked again when their inputs
+    """The Precise tables and an animated sun's record follow the values just written: baked again when their inputs
     changed (at once in the background, else shortly after the last change); tables of a level left are removed."""
     key_tiles = scene.get(facts.KEY_TILES)
     if precise_tables.uses_precise(scene):
@@ -235,7 +235,7 @@ def follow_key_tiles(scene, key_tiles_before) -> None:
 
 def update(scene) -> None:
     """After an edit of ``scene``'s settings or its sun: rebuild what the plan no longer matches, write the values,
-    and let the tables and the sun's keys follow. A scene with the effect off only gets its displayed values."""
+    and let the tables and the sun's record follow. A scene with the effect off only gets its displayed values."""
     if not scene.atmos.enabled:
         sync.sync_scene(scene)
         return

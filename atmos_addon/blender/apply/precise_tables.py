@@ -274,8 +274,8 @@ def moves(scene) -> bool:
 def follow(scene) -> None:
     """After a parameter, sun or camera change: re-bake a still scene's one tile (at once in the background, else
     0.3 s after the last change, so a slider drag bakes once). An animated scene's key tiles are re-baked by
-    Enable, Refresh and quality changes (:func:`bake`), and in the background with the sun's keys when an edit
-    makes those stale (:func:`.sun_bake.follow`); in the UI not on every edit (0.4-0.8 s a key tile), except once
+    Enable, Refresh and quality changes (:func:`bake`), and in the background when an edit makes the sun's recorded
+    animation stale (:func:`.sun_bake.follow`); in the UI not on every edit (0.4-0.8 s a key tile), except once
     for a file whose image has an older tile layout (:func:`layout_stale`)."""
     if not uses_precise(scene):
         return
