@@ -158,13 +158,22 @@ def write_shader_parameters(scene: bpy.types.Scene, skip: tuple[str, ...] = (), 
     (driven ones) only where they are missing. Tags the scene when anything was written; True then."""
     wrote = False
     for name, value in shader_parameter_values(**values).items():
-        # Assign only on change: a write re-tags the scene, and keyframed values must not be clobbered needlessly.
-        if name not in scene or (name not in skip and _as_tuple(scene[name]) != _as_tuple(value)):
-            scene[name] = value
-            wrote = True
+        if name in skip and name in scene:
+            continue
+        wrote = store_if_changed(scene, name, value) or wrote
     if wrote:
         scene.update_tag()
     return wrote
+
+
+def store_if_changed(scene: bpy.types.Scene, name: str, value) -> bool:
+    """Store ``value`` as ``scene``'s custom property ``name`` unless it holds it already; True when written. Only on
+    change: a written parameter must be followed by a tag of the scene (which re-evaluates every object), and keyed
+    values must not be clobbered needlessly."""
+    if name in scene and _as_tuple(scene[name]) == _as_tuple(value):
+        return False
+    scene[name] = value
+    return True
 
 
 def _positive(name: str, value: float) -> float:

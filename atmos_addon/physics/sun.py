@@ -24,6 +24,8 @@ Irradiance is per colour channel, on a surface perpendicular to the sun, in the 
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -152,31 +154,22 @@ def sun_table_sines(sun_angular_radius_rad: float = SUN_ANGULAR_RADIUS_RAD, rows
     return np.sin(-rho + (0.5 * np.pi + rho) * fraction * fraction)
 
 
-#: Per geometry (planet radius, scale heights, atmosphere height, the disk, rows): :func:`_visible_disk` of the
-#: table's rows and the optical depths to space of their disk points per unit sea-level coefficient, Rayleigh, haze
-#: and ozone (each (rows, disk points, 1)). A table is then one linear combination with the atmosphere's
-#: coefficients; the few most recent geometries are kept.
-_TABLE_GEOMETRY: dict[tuple, tuple[np.ndarray, ...]] = {}
-_TABLE_GEOMETRIES_KEPT = 4
-
-
-def _table_geometry(atm: Atmosphere, sines: np.ndarray, sun_angular_radius_rad: float,
-                    limb_darkening: float) -> tuple[np.ndarray, ...]:
-    """(weights, fractions, Rayleigh, haze and ozone optical depths per unit coefficient) of the rows ``sines``,
-    cached on what they depend on."""
-    key = (atm.planet_radius, atm.rayleigh_scale_height, atm.mie_scale_height, atm.atmosphere_height,
-           float(sun_angular_radius_rad), float(limb_darkening), sines.tobytes())
-    geometry = _TABLE_GEOMETRY.get(key)
-    if geometry is None:
-        weight, zenith, fraction = _visible_disk(np.arcsin(sines), 0.0, sun_angular_radius_rad, limb_darkening)
-        geometry = (weight, fraction,
-                    layer_optical_depth(0.0, zenith, 1.0, atm.rayleigh_scale_height, atm.planet_radius),
-                    layer_optical_depth(0.0, zenith, 1.0, atm.mie_scale_height, atm.planet_radius),
-                    ozone_slant_column(0.0, np.cos(zenith), atm)[..., np.newaxis])
-        while len(_TABLE_GEOMETRY) >= _TABLE_GEOMETRIES_KEPT:
-            del _TABLE_GEOMETRY[next(iter(_TABLE_GEOMETRY))]
-        _TABLE_GEOMETRY[key] = geometry
-    return geometry
+@functools.lru_cache(maxsize=4)
+def _table_geometry(planet_radius_m: float, rayleigh_scale_height_m: float, mie_scale_height_m: float,
+                    atmosphere_height_m: float, sun_angular_radius_rad: float, limb_darkening: float,
+                    rows: int) -> tuple[np.ndarray, ...]:
+    """What :func:`sun_irradiance_table` keeps per geometry: (sines, weights, fractions, and the Rayleigh, haze and
+    ozone optical depths to space of every row's disk points per unit sea-level coefficient), read-only."""
+    sines = sun_table_sines(sun_angular_radius_rad, rows)
+    weight, zenith, fraction = _visible_disk(np.arcsin(sines), 0.0, sun_angular_radius_rad, limb_darkening)
+    shell = Atmosphere(planet_radius=planet_radius_m, atmosphere_height=atmosphere_height_m)   # the ozone's path
+    arrays = (sines, weight, fraction,
+              layer_optical_depth(0.0, zenith, 1.0, rayleigh_scale_height_m, planet_radius_m),
+              layer_optical_depth(0.0, zenith, 1.0, mie_scale_height_m, planet_radius_m),
+              ozone_slant_column(0.0, np.cos(zenith), shell)[..., np.newaxis])
+    for array in arrays:
+        array.setflags(write=False)
+    return arrays
 
 
 def sun_irradiance_table(atm: Atmosphere, sun_angular_radius_rad: float = SUN_ANGULAR_RADIUS_RAD,
@@ -191,11 +184,13 @@ def sun_irradiance_table(atm: Atmosphere, sun_angular_radius_rad: float = SUN_AN
     Each row is :func:`sun_irradiance_ground` at the ground, every disk point seeing space. Optical depth is linear
     in the sea-level coefficients, tau = beta_R H_R Ch_R + beta_M,ex H_M Ch_M + beta_O3 X_O3, and the disk's points,
     weights and Chapman functions and ozone slant columns depend only on the geometry: they are computed once per
-    geometry (:func:`_table_geometry`, 0.1 s), and an edit of the air, the haze or the ozone costs one linear
-    combination and its exponential (about 1 ms, where the quadratures took 84 ms on every edit), the same numbers.
+    geometry (:func:`_table_geometry`, 0.1 s, the last four kept), and an edit of the air, the haze or the ozone
+    costs one linear combination and its exponential (about 1 ms, where the quadratures took 84 ms on every edit),
+    the same numbers.
     """
-    sines = sun_table_sines(sun_angular_radius_rad, rows)
-    weight, fraction, rayleigh, haze, ozone = _table_geometry(atm, sines, sun_angular_radius_rad, limb_darkening)
+    sines, weight, fraction, rayleigh, haze, ozone = _table_geometry(
+        float(atm.planet_radius), float(atm.rayleigh_scale_height), float(atm.mie_scale_height),
+        float(atm.atmosphere_height), float(sun_angular_radius_rad), float(limb_darkening), int(rows))
     tau = rayleigh * atm.rayleigh_scattering + haze * atm.mie_extinction
     if atm.ozone_column_du > 0.0:
         tau = tau + ozone * atm.ozone_absorption

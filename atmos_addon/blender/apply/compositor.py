@@ -34,6 +34,7 @@ import bpy
 
 from ... import nodes
 from ...plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_TRANSMITTANCE, AOV_VIEW, AOVS
+from .. import drivers
 from ..tree_edits import TAG
 
 GROUP_NAME = nodes.stamps.COMPOSITE.name
@@ -207,20 +208,8 @@ def _drive_parameters(node, scene) -> None:
         if curve.data_path.startswith(prefix) and (curve.data_path, curve.array_index) not in driven:
             animation.drivers.remove(curve)
     for socket, index, data_path in targets:
-        curve = socket.driver_add("default_value", index) if index is not None else socket.driver_add("default_value")
-        for modifier in list(curve.modifiers):
-            curve.modifiers.remove(modifier)
-        while curve.keyframe_points:   # a driver F-curve with points maps the driver's value through them
-            curve.keyframe_points.remove(curve.keyframe_points[0], fast=True)
-        driver = curve.driver
-        driver.type = "AVERAGE"
-        while driver.variables:
-            driver.variables.remove(driver.variables[0])
-        variable = driver.variables.new()
-        variable.type = "SINGLE_PROP"
-        variable.targets[0].id_type = "SCENE"
-        variable.targets[0].id = scene
-        variable.targets[0].data_path = data_path
+        driver = drivers.fresh(socket, "default_value", index).driver
+        drivers.add_variable(driver, "SCENE", scene, data_path)
         driver.is_valid = True   # an earlier failure (a property written later) would skip it for good
     node.id_data.update_tag()
 

@@ -147,9 +147,7 @@ def _write_parameters(scene, origin: tuple[int, int], camera_altitude_m: float, 
                                                    max(float(camera_altitude_m), 0.0))),
                         (parameters.PRECISE_SCALE, (float(tile.max_distance_m), float(top_m), float(weight))),
                         (parameters.PRECISE_ATLAS, (float(size[0]), float(size[1]), 0.0))):
-        if name not in scene or tuple(scene[name]) != value:   # stored as doubles: exact
-            scene[name] = value
-            wrote = True
+        wrote = parameters.store_if_changed(scene, name, value) or wrote
     return wrote
 
 

@@ -32,7 +32,7 @@ import hashlib
 import bpy
 import numpy as np
 
-from .. import scene_reading
+from .. import drivers, scene_reading
 
 #: Scene custom property: {"lamp": object name, "light": light data name or "", "table": digest}.
 STATE_KEY = "atmos_sun_drivers"
@@ -43,39 +43,16 @@ _LUMINANCE = "0.2126*r+0.7152*g+0.0722*b"
 _AXIS = "xyz"
 
 
-def _new_driver(idblock, path: str, index: int | None, expression: str):
-    """A fresh scripted driver on ``idblock``'s ``path`` (no modifiers, no keys, no variables)."""
-    curve = idblock.driver_add(path, index) if index is not None else idblock.driver_add(path)
-    for modifier in list(curve.modifiers):
-        curve.modifiers.remove(modifier)
-    curve.keyframe_points.clear()
-    driver = curve.driver
-    driver.type = "SCRIPTED"
-    while driver.variables:
-        driver.variables.remove(driver.variables[0])
-    driver.expression = expression
-    return curve
-
-
-def _variable(driver, name: str, id_type: str, idblock, data_path: str) -> None:
-    variable = driver.variables.new()
-    variable.name = name
-    variable.type = "SINGLE_PROP"
-    variable.targets[0].id_type = id_type
-    variable.targets[0].id = idblock
-    variable.targets[0].data_path = data_path
-
-
 def _lamp_axis(driver, lamp) -> None:
     """Variables x, y, z: the lamp's world +Z axis (the third stored column of ``matrix_world``)."""
     for index, name in enumerate(_AXIS):
-        _variable(driver, name, "OBJECT", lamp, f"matrix_world[2][{index}]")
+        drivers.add_variable(driver, "OBJECT", lamp, f"matrix_world[2][{index}]", name)
 
 
 def _scene_irradiance(driver, scene, parameter: str) -> None:
     """Variables r, g, b: the scene's E_sun per channel."""
     for index, name in enumerate("rgb"):
-        _variable(driver, name, "SCENE", scene, f'["{parameter}"][{index}]')
+        drivers.add_variable(driver, "SCENE", scene, f'["{parameter}"][{index}]', name)
 
 
 def digest(table: tuple[np.ndarray, np.ndarray]) -> str:
@@ -131,10 +108,10 @@ def install(scene, lamp, table: tuple[np.ndarray, np.ndarray], *, drive_light: b
     sines, irradiance = table
     for index in range(3):
         if rebuild:
-            curve = _new_driver(scene, f'["{parameters.SUN_DIRECTION}"]', index,
+            curve = drivers.fresh(scene, f'["{parameters.SUN_DIRECTION}"]', index,
                                 f"{_AXIS[index]}/sqrt(x*x+y*y+z*z)")
             _lamp_axis(curve.driver, lamp)
-            curve = _new_driver(scene, f'["{parameters.SUN_IRRADIANCE}"]', index,
+            curve = drivers.fresh(scene, f'["{parameters.SUN_IRRADIANCE}"]', index,
                                 f"{SINE_SCALE:.0f}*z/sqrt(x*x+y*y+z*z)")
             _lamp_axis(curve.driver, lamp)
         else:
@@ -143,10 +120,10 @@ def install(scene, lamp, table: tuple[np.ndarray, np.ndarray], *, drive_light: b
             _write_table(curve, sines, irradiance[:, index])
     if light is not None and (rebuild or recorded.get("light") != light.name or not _present(scene, lamp, light)):
         for index in range(3):
-            curve = _new_driver(light, "color", index,
+            curve = drivers.fresh(light, "color", index,
                                 f"{'rgb'[index]}/({_LUMINANCE}) if r+g+b > 0 else 1.0")
             _scene_irradiance(curve.driver, scene, parameters.SUN_IRRADIANCE)
-        curve = _new_driver(light, "energy", None, _LUMINANCE)
+        curve = drivers.fresh(light, "energy", None, _LUMINANCE)
         _scene_irradiance(curve.driver, scene, parameters.SUN_IRRADIANCE)
     elif light is None and recorded is not None and recorded.get("light"):
         _remove_light_drivers(bpy.data.lights.get(recorded["light"]))
