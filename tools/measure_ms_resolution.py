@@ -2,7 +2,7 @@
 """What the multiple-scattering table's resolution costs and buys: each variant's build time against the default's,
 and how far the default level's pixel luminance moves on every accuracy-bench case (the table alone changed).
 
-    .venv/bpy-5.2.3/bin/python tools/measure_ms_resolution.py [--variants "alt24=n_altitudes:24;steps16=n_steps:16"]
+    .venv/bpy-5.2.3/bin/python tools/measure_ms_resolution.py [--variants "alt32=n_altitudes:32;steps12=n_steps:12"]
 
 A variant is ``name=keyword:value,keyword:value`` of :class:`atmos_addon.physics.precise.MultipleScatteringTable`;
 the tiles are integrated afresh with each variant's table (``precise.atmosphere_tables`` swapped for the run) and
@@ -26,8 +26,10 @@ from atmos_addon.physics import precise  # noqa: E402
 from atmos_addon.physics.quality import BENCH_CASES, COMPLETE_ONLY_CASES  # noqa: E402
 from atmos_addon.physics.spectrum import LINEAR_REC709_TO_XYZ  # noqa: E402
 
-DEFAULT_VARIANTS = ("alt24=n_altitudes:24;cos25=n_cosines:25;steps16=n_steps:16;"
-                    "alt24+steps16=n_altitudes:24,n_steps:16;az12+zen5=n_azimuth:12,n_zenith:5")
+#: The table before December 2026's (32 altitudes, 24 steps), and coarser ones than the default (24 altitudes,
+#: 33 sun cosines, 16 steps since then).
+DEFAULT_VARIANTS = ("alt32+steps24=n_altitudes:32,n_steps:24;alt16=n_altitudes:16;steps12=n_steps:12;"
+                    "cos25=n_cosines:25")
 
 
 def parse(text: str) -> dict[str, dict[str, int]]:

@@ -704,3 +704,24 @@ def test_the_camera_sky_view_rows_and_blend():
     np.testing.assert_allclose(blended.camera_sky_rayleigh,
                                0.75 * first.camera_sky_rayleigh + 0.25 * second.camera_sky_rayleigh)
     np.testing.assert_allclose(blended.camera_sky_mie, 0.75 * first.camera_sky_mie + 0.25 * second.camera_sky_mie)
+
+
+def test_log_linear_is_the_geometric_line_between_lit_nodes_and_the_straight_line_elsewhere():
+    """``_log_linear`` (the tables' interpolation across the terminator): low^(1 - f) high^f where both nodes are
+    positive, low + f (high - low) where either is 0 or below (rounding deep in the planet's shadow), in the
+    arrays' own dtype; the fast path that fixes only the dark cells gives what ``np.where`` over both gives."""
+    from atmos_addon.physics.precise import _log_linear
+
+    low = np.array([[1.0, 0.0, 4.0, -1e-9, 2.0, 1e-30]], np.float32)
+    high = np.array([[4.0, 3.0, 0.0, 5.0, 2.0, 1e-20]], np.float32)
+    fraction = np.array([[0.5]], np.float32)
+    result = _log_linear(low, high, fraction)
+    assert result.dtype == np.float32
+    np.testing.assert_allclose(result[0], [2.0, 1.5, 2.0, 2.5, 2.0, 1e-25], rtol=1e-5)
+    rng = np.random.default_rng(3)
+    low, high = (np.where(rng.random((500, 6)) < 0.1, 0.0, rng.random((500, 6))).astype(np.float32) for _ in "ab")
+    fraction = rng.random((500, 1)).astype(np.float32)
+    positive = (low > 0.0) & (high > 0.0)
+    expected = np.where(positive, low * (np.where(positive, high, 1.0) / np.where(positive, low, 1.0)) ** fraction,
+                        low + fraction * (high - low))
+    assert np.array_equal(_log_linear(low, high, fraction), expected)
