@@ -33,6 +33,13 @@ class Debounced:
         self._pending.clear()
         return None
 
+    def flush(self) -> None:
+        """Run the queued work now instead of at the timer (before a save: the file gets what the scenes ask for)."""
+        if bpy.app.timers.is_registered(self._timer):
+            bpy.app.timers.unregister(self._timer)
+        if self._pending:
+            self._run()
+
     def cancel(self) -> None:
         """Drop the queued scenes and the timer (unregister)."""
         self._pending.clear()

@@ -5,6 +5,8 @@
   added, a material was edited, the render engine changed: each the cheap check first, then the orchestrator.
 - :func:`on_load_post`, :func:`on_undo_redo`: the file's data changed under the caches: everything is updated again
   (after a load, settings saved before a default changed first get their former default: :mod:`.migration`).
+- :func:`on_save_pre`: what the interface left for later (debounced re-bakes, the worker thread's tile) is done
+  before the file is written.
 - :func:`follow_render_settings` (message bus): the engine or Cycles' Open Shading Language changed.
 """
 
@@ -134,8 +136,17 @@ def _subscribe() -> None:
         bpy.msgbus.subscribe_rna(key=key, owner=_MSGBUS_OWNER, args=(), notify=follow_render_settings)
 
 
+@persistent
+def on_save_pre(*_args) -> None:
+    """Before a save: the re-bakes and records the UI left for later (a timer 0.3 s after the last change, a tile on
+    the worker thread) are done now, so the file holds the tables of the scene it saves (a farm renders those)."""
+    sun_bake.finish_pending()
+    precise_tables.finish_pending()
+
+
 HANDLERS = (
     (bpy.app.handlers.depsgraph_update_post, on_depsgraph_update),
+    (bpy.app.handlers.save_pre, on_save_pre),
     (bpy.app.handlers.load_post, on_load_post),
     (bpy.app.handlers.undo_post, on_undo_redo),
     (bpy.app.handlers.redo_post, on_undo_redo),

@@ -163,6 +163,11 @@ def _rebake_if_stale(scene: bpy.types.Scene) -> None:
 _later = Debounced(_rebake_if_stale)
 
 
+def finish_pending() -> None:
+    """Record now what the UI has queued (before a save)."""
+    _later.flush()
+
+
 def cancel_pending() -> None:
     """Drop queued re-bakes and their timer (unregister)."""
     _later.cancel()

@@ -16,8 +16,12 @@ the file carries it. A bake is skipped while its inputs are unchanged (a key sto
 
 from __future__ import annotations
 
+import concurrent.futures
 import hashlib
 import math
+import time
+import traceback
+from dataclasses import dataclass
 
 import bpy
 import numpy as np
@@ -164,27 +168,57 @@ def _clear_keys(scene) -> bool:
     return bool(curves)
 
 
-def bake(scene, *, force: bool = False) -> int:
-    """Bake the scene's tables if their inputs changed (or ``force``); returns the number of tiles baked (0: the
-    image was current). Writes and, when they change over the frame range, keys the Precise parameters, and records
-    the number of key tiles (:data:`.facts.KEY_TILES`, which the plan's blend follows)."""
+@dataclass(frozen=True)
+class _Request:
+    """What :func:`bake` integrates for a scene now: its inputs' ``key`` and the key tiles' arguments."""
+
+    key: str
+    inputs: list
+    path: object                 #: ``physics.precise.key_tiles``' path: the keys, each frame's segment and weight
+    atmosphere: object
+    albedo: tuple
+    multiple: bool
+    shared_distance_m: float | None
+
+
+def _request(scene) -> _Request:
     settings = scene.atmos
     atmosphere = scene_reading.atmosphere_of(scene)
     albedo = tuple(float(a) for a in settings.ground_albedo)
     multiple = bool(settings.multiple_scattering)
     inputs = frame_inputs(scene)
-    key = _bake_key(atmosphere, albedo, multiple, inputs)
-    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
-    tile_parameter = scene_reading.groups().parameters.PRECISE_TILE
-    if not force and image is not None and image.get(_KEY) == key and tile_parameter in scene:
-        _link_image(image)
-        _revalidate_drivers(scene)
-        return 0
     altitudes = [altitude for _, altitude, _ in inputs]
     path = key_tiles(altitudes, [elevation for _, _, elevation in inputs], max_keys=TILES_PER_COLUMN)
     shared = shared_max_distance(altitudes, atmosphere) if len(path.keys) > 1 else None
-    tiles = [bake_tile(atmosphere, altitude, elevation, multiple_scattering=multiple, ground_albedo=albedo,
-                       max_distance_m=shared) for altitude, elevation in path.keys]
+    return _Request(_bake_key(atmosphere, albedo, multiple, inputs), inputs, path, atmosphere, albedo, multiple,
+                    shared)
+
+
+def _integrate(request: _Request) -> list[Tile]:
+    """The request's key tiles (``physics.precise.bake_tile``: numpy alone, so it runs on a worker thread too; its
+    cache keeps the last tiles, so a bake after the worker's reads them back)."""
+    return [bake_tile(request.atmosphere, altitude, elevation, multiple_scattering=request.multiple,
+                      ground_albedo=request.albedo, max_distance_m=request.shared_distance_m)
+            for altitude, elevation in request.path.keys]
+
+
+def _is_current(request: _Request, scene) -> bool:
+    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
+    return (image is not None and image.get(_KEY) == request.key
+            and scene_reading.groups().parameters.PRECISE_TILE in scene)
+
+
+def bake(scene, *, force: bool = False) -> int:
+    """Bake the scene's tables if their inputs changed (or ``force``); returns the number of tiles baked (0: the
+    image was current). Writes and, when they change over the frame range, keys the Precise parameters, and records
+    the number of key tiles (:data:`.facts.KEY_TILES`, which the plan's blend follows)."""
+    request = _request(scene)
+    if not force and _is_current(request, scene):
+        _link_image(bpy.data.images[scene_reading.groups().precise.IMAGE_NAME])
+        _revalidate_drivers(scene)
+        return 0
+    key, inputs, path, atmosphere = request.key, request.inputs, request.path, request.atmosphere
+    tiles = _integrate(request)
     image = write_tiles(tiles)
     image[_KEY] = key
     image[_LAYOUT_KEY] = _LAYOUT
@@ -271,10 +305,11 @@ def moves(scene) -> bool:
 
 def follow(scene) -> None:
     """After a parameter, sun or camera change: re-bake a still scene's one tile (at once in the background, else
-    0.3 s after the last change, so a slider drag bakes once). An animated scene's key tiles are re-baked by
-    Enable, Refresh and quality changes (:func:`bake`), and in the background when an edit makes the sun's recorded
-    animation stale (:func:`.sun_bake.follow`); in the UI not on every edit (0.4-0.8 s a key tile), except once
-    for a file whose image has an older tile layout (:func:`layout_stale`)."""
+    0.3 s after the last change, so a slider drag bakes once, on a worker thread: :func:`bake_on_worker`). An
+    animated scene's key tiles are re-baked by Enable, Refresh and quality changes (:func:`bake`), and in the
+    background when an edit makes the sun's recorded animation stale (:func:`.sun_bake.follow`); in the UI not on
+    every edit (0.4-0.5 s a key tile), except once for a file whose image has an older tile layout
+    (:func:`layout_stale`)."""
     if not uses_precise(scene):
         return
     if moves(scene):
@@ -294,15 +329,104 @@ def layout_stale() -> bool:
     return image is not None and image.get(_LAYOUT_KEY) != _LAYOUT
 
 
-def _bake_if_still(scene) -> None:
-    if uses_precise(scene) and not moves(scene):
-        bake(scene)
+def bake_on_worker(scene) -> None:
+    """The debounced re-bake of a still scene in the UI: its tile is integrated on a worker thread (0.4-0.5 s, and
+    the atmosphere's tables after an edit of it), so the interface never waits for it; :func:`write_finished` writes
+    the image on the main thread when it is ready."""
+    if not uses_precise(scene) or moves(scene):
+        return
+    request = _request(scene)
+    if _is_current(request, scene):
+        return
+    job = _jobs.get(scene.name)
+    if job is not None:
+        if job[0].key == request.key:
+            return                 # already on its way
+        job[1].cancel()            # not started yet: dropped (a started one finishes; its tile is then unused)
+    _jobs[scene.name] = (request, _executor().submit(_integrate, request))
+    if not bpy.app.timers.is_registered(write_finished):
+        bpy.app.timers.register(write_finished, first_interval=APPLY_POLL_S)
+
+
+#: Seconds between the main thread's checks for a finished worker bake.
+APPLY_POLL_S = 0.05
+#: Scene name -> (request, future) of the worker bakes under way.
+_jobs: dict[str, tuple[_Request, concurrent.futures.Future]] = {}
+_worker: list[concurrent.futures.ThreadPoolExecutor] = []
+
+
+def _executor() -> concurrent.futures.ThreadPoolExecutor:
+    """One worker thread (its bake runs ``physics.precise.WORKERS`` threads of its own), made when first needed."""
+    if not _worker:
+        _worker.append(concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="atmos-bake"))
+    return _worker[0]
+
+
+def write_finished():
+    """Timer: write the tables of the worker bakes that finished (the tiles come from ``bake_tile``'s cache, so
+    :func:`bake` only writes the image and the parameters). A scene whose inputs changed meanwhile (another edit,
+    another file with a scene of that name) is baked again on the worker instead; one deleted or no longer still is
+    dropped. A worker's error is raised again by baking at once, on the main thread, and printed with its
+    traceback; the other scenes' bakes go on. Nothing is written while a render runs (it may be reading the image):
+    the next check after it does."""
+    if bpy.app.is_job_running("RENDER"):
+        return APPLY_POLL_S
+    for name, (request, future) in list(_jobs.items()):
+        if not future.done():
+            continue
+        del _jobs[name]
+        scene = bpy.data.scenes.get(name)
+        if future.cancelled() or scene is None or not uses_precise(scene) or moves(scene):
+            continue
+        try:
+            if future.exception() is not None or _request(scene).key == request.key:
+                bake(scene)
+            else:
+                bake_on_worker(scene)
+        except Exception:   # a timer that raises is unregistered: the other scenes' bakes would never be written
+            traceback.print_exc()
+    return APPLY_POLL_S if _jobs else None
+
+
+def wait_for_worker(timeout_s: float = 60.0, *, write: bool = True) -> bool:
+    """Block until the worker bakes under way are done and (``write``) written, at most ``timeout_s`` (scripts that
+    drive the UI path, tests, the bench); True when none is left to wait for."""
+    deadline = time.monotonic() + timeout_s
+    if not write:
+        concurrent.futures.wait([future for _, future in _jobs.values()], timeout=timeout_s)
+        return all(future.done() for _, future in _jobs.values())
+    while _jobs and time.monotonic() < deadline:
+        concurrent.futures.wait([future for _, future in _jobs.values()], timeout=max(deadline - time.monotonic(), 0))
+        if write_finished() is not None and all(future.done() for _, future in _jobs.values()):
+            time.sleep(APPLY_POLL_S)   # a render holds the writes back
+    if not _jobs and bpy.app.timers.is_registered(write_finished):
+        bpy.app.timers.unregister(write_finished)
+    return not _jobs
+
+
+def pending() -> list[str]:
+    """The names of the scenes whose worker bake is not written yet."""
+    return sorted(_jobs)
 
 
 #: An interactive re-bake, 0.3 s after the last change.
-_later = Debounced(_bake_if_still)
+_later = Debounced(bake_on_worker)
+
+
+def finish_pending() -> None:
+    """Bake now what the UI has queued (the debounced re-bake) and write what the worker is baking (before a save: a
+    farm renders the file's table, so it must be the scene's)."""
+    _later.flush()
+    wait_for_worker()
 
 
 def cancel_pending() -> None:
-    """Drop queued re-bakes and their timer (unregister)."""
+    """Drop queued re-bakes, the worker's and their timers (unregister)."""
     _later.cancel()
+    for _, future in _jobs.values():
+        future.cancel()
+    _jobs.clear()
+    if bpy.app.timers.is_registered(write_finished):
+        bpy.app.timers.unregister(write_finished)
+    if _worker:
+        _worker.pop().shutdown(wait=False, cancel_futures=True)

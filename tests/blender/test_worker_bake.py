@@ -1,0 +1,168 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""In the UI a still scene's Precise table is re-baked on a worker thread (``precise_tables.bake_on_worker``, which
+the debounced timer calls 0.3 s after the last sun, camera or atmosphere change): the interface does not wait for the
+0.4-0.5 s tile (plus the atmosphere's tables), and the image written when the worker is done is the synchronous
+bake's to the bit. The pip ``bpy`` module has no event loop, so these tests call the timers' functions themselves;
+Atmos's depsgraph handler is held off while the scene changes, else background mode would bake at once.
+
+Scenes built from scratch (an empty factory file: no world, a bare camera, a sun lamp)."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+
+import bpy
+import numpy as np
+
+import render_utils as ru
+from atmos_addon.blender import orchestrator, scene_reading
+from atmos_addon.blender.apply import precise_tables, sun_lamp
+
+
+@contextlib.contextmanager
+def _handler_held():
+    """Atmos's depsgraph handler off (background mode would re-bake in it), Blender's own update still on."""
+    handlers = bpy.app.handlers.depsgraph_update_post
+    ours = [h for h in handlers if getattr(h, "__name__", "") == "on_depsgraph_update"]
+    assert ours
+    for handler in ours:
+        handlers.remove(handler)
+    try:
+        yield
+    finally:
+        handlers.extend(ours)
+
+
+def _scene(scene):
+    ru.make_camera(scene, location=(0.0, 0.0, 30.0), rotation_euler=(math.radians(85.0), 0.0, 0.0))
+    orchestrator.enable_effect(scene)                     # adds its sun lamp
+    sun_lamp.set_sun_angles(scene, math.radians(20.0), math.radians(120.0))
+    bpy.context.view_layer.update()
+    assert precise_tables.uses_precise(scene)   # the default bakes the tables
+    return scene
+
+
+def _move_sun(scene, elevation_deg: float) -> None:
+    with _handler_held():
+        sun_lamp.set_sun_angles(scene, math.radians(elevation_deg), math.radians(120.0))
+        bpy.context.view_layer.update()
+
+
+def _image():
+    return bpy.data.images[scene_reading.groups().precise.IMAGE_NAME]
+
+
+def _pixels() -> np.ndarray:
+    image = _image()
+    pixels = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(pixels)
+    return pixels
+
+
+def test_the_worker_bakes_what_the_synchronous_bake_bakes(addon):
+    scene = _scene(addon)
+    before = _pixels()
+    _move_sun(scene, 6.0)
+    stale = precise_tables._request(scene)
+    assert _image()[precise_tables._KEY] != stale.key
+    precise_tables.bake_on_worker(scene)
+    assert precise_tables.pending() == [scene.name]
+    assert bpy.app.timers.is_registered(precise_tables.write_finished)
+    assert _image()[precise_tables._KEY] != stale.key     # nothing written on the main thread yet
+    precise_tables.bake_on_worker(scene)                  # the same request again: no second job
+    assert len(precise_tables.pending()) == 1
+    precise_tables.wait_for_worker()
+    assert not precise_tables.pending() and not bpy.app.timers.is_registered(precise_tables.write_finished)
+    assert _image()[precise_tables._KEY] == stale.key
+    written = _pixels()
+    assert not np.array_equal(written, before)            # a 6 deg sun's table, not the 20 deg one's
+    assert precise_tables.bake(scene, force=True) == 1
+    assert np.array_equal(_pixels(), written)
+    precise_tables.bake_on_worker(scene)                  # current: nothing to do
+    assert not precise_tables.pending()
+
+
+def test_a_change_while_the_worker_runs_bakes_the_latest_scene(addon, monkeypatch):
+    """The sun moves again before the worker's tile is written: the table written is the last position's, never the
+    one in between (an atmosphere edit meanwhile likewise: its key differs)."""
+    scene = _scene(addon)
+    integrated = []
+    original = precise_tables._integrate
+    monkeypatch.setattr(precise_tables, "_integrate", lambda request: integrated.append(request.key)
+                        or original(request))
+    _move_sun(scene, 8.0)
+    precise_tables.bake_on_worker(scene)
+    _move_sun(scene, 3.0)
+    with _handler_held():
+        scene.atmos.mie_scattering_per_km = tuple(v * 1.5 for v in scene.atmos.mie_scattering_per_km)
+    latest = precise_tables._request(scene)
+    precise_tables.wait_for_worker()                      # the 8 deg job finishes, is found stale and re-queued
+    assert integrated[-1] == latest.key and len(integrated) == 2
+    assert _image()[precise_tables._KEY] == latest.key
+    written = _pixels()
+    precise_tables.bake(scene, force=True)
+    assert np.array_equal(_pixels(), written)
+
+
+def test_a_scene_deleted_or_switched_to_animation_meanwhile_is_left_alone(addon):
+    scene = _scene(addon)
+    other = bpy.data.scenes.new("Shot 2")
+    other.atmos.enabled = False
+    _move_sun(scene, 7.0)
+    key = _image()[precise_tables._KEY]
+    precise_tables.bake_on_worker(scene)
+    bpy.data.scenes.remove(scene)
+    precise_tables.wait_for_worker()
+    assert not precise_tables.pending()
+    assert _image()[precise_tables._KEY] == key           # nothing written for a scene that is gone
+
+
+def test_a_worker_error_is_raised_on_the_main_thread_and_the_other_bakes_go_on(addon, monkeypatch, capsys):
+    scene = _scene(addon)
+    _move_sun(scene, 9.0)
+    original = precise_tables._integrate
+
+    def broken(request):
+        raise RuntimeError("table integration failed")
+
+    monkeypatch.setattr(precise_tables, "_integrate", broken)
+    precise_tables.bake_on_worker(scene)
+    precise_tables.wait_for_worker()                      # no exception escapes the timer
+    assert "table integration failed" in capsys.readouterr().err
+    assert not precise_tables.pending()
+    monkeypatch.setattr(precise_tables, "_integrate", original)
+    precise_tables.bake_on_worker(scene)
+    precise_tables.wait_for_worker()
+    assert _image()[precise_tables._KEY] == precise_tables._request(scene).key
+
+
+def test_unregister_cancels_the_worker_and_its_timer(addon):
+    scene = _scene(addon)
+    _move_sun(scene, 11.0)
+    precise_tables.bake_on_worker(scene)
+    precise_tables.cancel_pending()
+    assert not precise_tables.pending() and not precise_tables._worker
+    assert not bpy.app.timers.is_registered(precise_tables.write_finished)
+
+
+def test_a_save_writes_the_table_the_ui_left_for_later(addon, tmp_path):
+    """A farm renders the file's table: saving 0.3 s after a change (the debounced timer not fired yet) or while the
+    worker bakes must not store the table of before. The save handler bakes what is queued and writes the worker's
+    tile first; the file opened afresh holds the scene's table."""
+    scene = _scene(addon)
+    _move_sun(scene, 5.0)
+    precise_tables._later.request(scene)                  # what the UI's follow does: the timer, 0.3 s later
+    expected = precise_tables._request(scene).key
+    path = tmp_path / "queued.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    assert not precise_tables.pending() and _image()[precise_tables._KEY] == expected
+    _move_sun(scene, 4.0)
+    precise_tables.bake_on_worker(scene)                  # the timer fired: the worker bakes
+    expected = precise_tables._request(scene).key
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    assert not precise_tables.pending()
+    written = _pixels()
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    assert _image()[precise_tables._KEY] == expected
+    assert np.array_equal(_pixels(), written)
