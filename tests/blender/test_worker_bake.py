@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import threading
 
 import bpy
 import numpy as np
@@ -60,8 +61,12 @@ def _pixels() -> np.ndarray:
     return pixels
 
 
-def test_the_worker_bakes_what_the_synchronous_bake_bakes(addon):
+def test_the_worker_bakes_what_the_synchronous_bake_bakes(addon, monkeypatch):
     scene = _scene(addon)
+    threads = []
+    original = precise_tables._integrate
+    monkeypatch.setattr(precise_tables, "_integrate", lambda request: threads.append(
+        threading.current_thread().name) or original(request))
     before = _pixels()
     _move_sun(scene, 6.0)
     stale = precise_tables._request(scene)
@@ -71,8 +76,8 @@ def test_the_worker_bakes_what_the_synchronous_bake_bakes(addon):
     assert bpy.app.timers.is_registered(precise_tables.write_finished)
     assert _image()[precise_tables._KEY] != stale.key     # nothing written on the main thread yet
     precise_tables.bake_on_worker(scene)                  # the same request again: no second job
-    assert len(precise_tables.pending()) == 1
     precise_tables.wait_for_worker()
+    assert [name for name in threads if name.startswith("atmos-bake")] == [threads[0]]   # integrated once, there
     assert not precise_tables.pending() and not bpy.app.timers.is_registered(precise_tables.write_finished)
     assert _image()[precise_tables._KEY] == stale.key
     written = _pixels()
