@@ -202,10 +202,12 @@ def _integrate(request: _Request) -> list[Tile]:
             for altitude, elevation in request.path.keys]
 
 
-def _is_current(request: _Request, scene) -> bool:
+def _current_image(request: _Request, scene) -> bpy.types.Image | None:
+    """The table image when it holds what ``request`` asks for (and the scene its parameters), else None."""
     image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
-    return (image is not None and image.get(_KEY) == request.key
-            and scene_reading.groups().parameters.PRECISE_TILE in scene)
+    current = (image is not None and image.get(_KEY) == request.key
+               and scene_reading.groups().parameters.PRECISE_TILE in scene)
+    return image if current else None
 
 
 def bake(scene, *, force: bool = False) -> int:
@@ -213,8 +215,9 @@ def bake(scene, *, force: bool = False) -> int:
     image was current). Writes and, when they change over the frame range, keys the Precise parameters, and records
     the number of key tiles (:data:`.facts.KEY_TILES`, which the plan's blend follows)."""
     request = _request(scene)
-    if not force and _is_current(request, scene):
-        _link_image(bpy.data.images[scene_reading.groups().precise.IMAGE_NAME])
+    image = None if force else _current_image(request, scene)
+    if image is not None:
+        _link_image(image)
         _revalidate_drivers(scene)
         return 0
     key, inputs, path, atmosphere = request.key, request.inputs, request.path, request.atmosphere
@@ -336,7 +339,7 @@ def bake_on_worker(scene) -> None:
     if not uses_precise(scene) or moves(scene):
         return
     request = _request(scene)
-    if _is_current(request, scene):
+    if _current_image(request, scene) is not None:
         return
     job = _jobs.get(scene.name)
     if job is not None:
