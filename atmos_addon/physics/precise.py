@@ -310,6 +310,88 @@ def _direction_grid(n_zenith: int, n_azimuth: int) -> tuple[np.ndarray, np.ndarr
     return dirs.reshape(-1, 3), np.repeat(dz * (2.0 * np.pi / n_azimuth), n_azimuth)
 
 
+#: The forward peak of the haze's phase function within this angle of straight on is carried as not scattered when
+#: the table scatters the first order once more (:func:`grid_forward_fraction`); the rest is scattered on the
+#: direction grid. Chosen by the accuracy bench over 20-35 deg (docs/quality.md): a narrower cut sends light the grid
+#: cannot place (its azimuth step is 22.5 deg) off the sun's line, a wider one keeps too much of it on that line.
+GRID_FORWARD_CUT_DEG = 30.0
+
+
+def grid_forward_fraction(atm: Atmosphere) -> np.ndarray:
+    """f_c (3,): the share of the haze's scattering above the Henyey-Greenstein value at :data:`GRID_FORWARD_CUT_DEG`
+    inside that cone (the peak the direction grid cannot resolve), per channel (:func:`_cone_fraction`)."""
+    return _cone_fraction(_mie_g(atm))
+
+
+def _cone_fraction(g: np.ndarray) -> np.ndarray:
+    """:func:`grid_forward_fraction` of Henyey-Greenstein g (3,); 0 where g <= 0 (no forward peak). Closed form:
+    2 pi integral_{mu_c}^1 (Phi(mu) - Phi(mu_c)) dmu, with
+    2 pi integral_{mu_c}^1 Phi dmu = (1 - g^2) / (2 g) (1 / (1 - g) - 1 / sqrt(1 + g^2 - 2 g mu_c))."""
+    g = np.asarray(g, dtype=np.float64)
+    mu_c = math.cos(math.radians(GRID_FORWARD_CUT_DEG))
+    safe = np.where(g > 0.0, g, 0.5)
+    cone = (1.0 - safe ** 2) / (2.0 * safe) * (1.0 / (1.0 - safe) - 1.0 / np.sqrt(1.0 + safe ** 2 - 2.0 * safe * mu_c))
+    flat = 2.0 * np.pi * (1.0 - mu_c) * phase_hg(mu_c, safe)
+    return np.where(g > 0.0, np.maximum(cone - flat, 0.0), 0.0)
+
+
+def _cut_phase_hg(mu: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Henyey-Greenstein (..., 3) with its forward cone (within :data:`GRID_FORWARD_CUT_DEG`, where g > 0) flattened
+    to the value at the cone's edge: the part of the phase function left once :func:`grid_forward_fraction` is
+    taken out (not normalised)."""
+    mu_c = math.cos(math.radians(GRID_FORWARD_CUT_DEG))
+    mu = np.asarray(mu)
+    return np.where((mu[..., None] > mu_c) & (g > 0.0), phase_hg(mu_c, g), phase_hg(mu, g))
+
+
+def _cell_weights(views: np.ndarray, n_zenith: int, n_azimuth: int, phase: Callable, sub: int = 8) -> np.ndarray:
+    """(V, D, ...): ``phase(v . w')`` averaged over each cell of :func:`_direction_grid` (``sub`` x ``sub``
+    directions even in the zenith cosine and the azimuth within the cell), times the cell's solid angle: the integral
+    of the phase function over each cell, the weight a field constant over the cell takes. Read at the cells' centres
+    instead, a lobe narrower than a cell is weighed by where the centres fall (the haze's g 0.78 summed to 0.95-1.00
+    over the grid before normalising, by view direction); with the cell averages alone the accuracy bench's
+    Martian sunset went from 18.7 % to 16.7 % (stop 47)."""
+    _, w = np.polynomial.legendre.leggauss(n_zenith)
+    edges = np.concatenate([[0.0], np.cumsum(w * 0.5)])               # the Gauss-Legendre cells of z in 0..1
+    u = (np.arange(sub) + 0.5) / sub
+    z_up = edges[:-1, None] + np.diff(edges)[:, None] * u             # (n_zenith, sub), the grid's order
+    z = np.concatenate([-z_up, z_up])
+    phi = 2.0 * np.pi * (np.arange(n_azimuth)[:, None] + u) / n_azimuth
+    total = 0.0
+    for a in range(sub):
+        across = np.sqrt(np.maximum(1.0 - z[:, a] ** 2, 0.0))[:, None]
+        for b in range(sub):
+            cells = np.stack(np.broadcast_arrays(across * np.cos(phi[:, b]), across * np.sin(phi[:, b]),
+                                                 z[:, a][:, None]), axis=-1).reshape(-1, 3)
+            total = total + phase(views @ cells.T)
+    _, solid_angle = _direction_grid(n_zenith, n_azimuth)
+    return total / (sub * sub) * solid_angle.reshape((1, -1) + (1,) * (np.ndim(total) - 2))
+
+
+@functools.lru_cache(maxsize=8)
+def _view_weights(n_zenith: int, n_azimuth: int, n_view_cosines: int, n_view_azimuths: int,
+                  mie_g: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The view grid (V, 3) and, per view direction, the weights that scatter the light of each grid direction into it
+    (:func:`_cell_weights`, each row normalised to 1): Rayleigh (V, D), the haze (V, D, 3), and the haze less its
+    forward cone (V, D, 3, normalised then times 1 - f_c: :func:`grid_forward_fraction`). Cached: they depend on the
+    grid and the haze's g only (0.1 s)."""
+    view_z = np.linspace(-1.0, 1.0, n_view_cosines)[:, None]
+    view_a = np.linspace(0.0, np.pi, n_view_azimuths)[None, :]
+    across = np.sqrt(1.0 - view_z ** 2)
+    views = np.stack(np.broadcast_arrays(across * np.cos(view_a), across * np.sin(view_a), view_z),
+                     axis=-1).reshape(-1, 3)
+    g = np.asarray(mie_g)
+    rayleigh = _cell_weights(views, n_zenith, n_azimuth, phase_rayleigh)
+    mie = _cell_weights(views, n_zenith, n_azimuth, lambda mu: phase_hg(mu, g))
+    cut = _cell_weights(views, n_zenith, n_azimuth, lambda mu: _cut_phase_hg(mu, g))
+    kept = 1.0 - _cone_fraction(g)
+    result = (views, rayleigh / rayleigh.sum(axis=1, keepdims=True), mie / mie.sum(axis=1, keepdims=True),
+              cut / cut.sum(axis=1, keepdims=True) * kept)
+    for array in result:
+        array.flags.writeable = False
+    return result
+
+
 @dataclass(frozen=True)
 class _Rays:
     """The rays a :class:`MultipleScatteringTable` marches from the nodes of one altitude, in each marched direction
@@ -325,6 +407,9 @@ class _Rays:
     ground_radius_m: np.ndarray   #: (D,) radius where the ray ends
     ground_sun_cosine: np.ndarray  #: (M, D) sun zenith cosine at the ray's end
     view_up: np.ndarray            #: (D, S) w . up_p: the ray's direction against the local zenith at each step
+    first_rayleigh: np.ndarray     #: (D, S, 3) T_c beta_R n_R dt: T_c the transmittance less the forward cone only
+    first_mie: np.ndarray          #: (D, S, 3) T_c beta_M n_M dt
+    first_to_ground: np.ndarray    #: (D, 3) T_c,ground albedo where the ray meets the ground, else 0
 
 
 def forward_fraction(atm: Atmosphere) -> np.ndarray:
@@ -413,34 +498,55 @@ class MultipleScatteringTable:
     of its scattering (g > 0; none for a haze scattering backward) is a delta function forward (light that goes on as
     if not scattered) and the rest scatters with mean cosine g' = (g - f) / (1 - f). So along the rays T' is the
     transmittance with the haze's extinction less f beta_M n_M, sigma_s' = beta_R n_R + (1 - f) beta_M n_M the
-    scattering that turns light:
+    scattering that turns light. The first two orders are carried by direction, the rest as a P1 field:
 
-        L_1(x, w) = integral T' (beta_R n_R Phi_R + beta_M n_M Phi_HG)(w . sun) T_sun dt + T'_g T_sun mu_s,g albedo / pi
+    * The first order, by direction: the sun's beam (true transmittance T_sun) scattered with the true phase functions,
+      carried to x with T_c, the transmittance less only the part of the haze's peak the direction grid cannot
+      resolve, f_c (:func:`grid_forward_fraction`, the peak above its value :data:`GRID_FORWARD_CUT_DEG` off):
 
-    (the sun's own beam keeps the true phase function and transmittance: the single scattering is exact). At every
-    node the light of every order is described by its mean radiance J and its first moment H = (1 / 4 pi) integral
-    L w dOmega (two components, up and toward the sun: the light is symmetric about the sun's plane), the P1 field
-    L(w) ~ J + 3 H . w, and a point that scatters it sends J sigma_s' + 3 (g - f) beta_M n_M H . w back along w
-    (Rayleigh's mean cosine is 0). With Q(p, w) that emission, read off the nodes bilinearly, and the Lambertian ground
-    of ``ground_albedo`` lit by the sky's irradiance E (from the same field over the upper hemisphere):
+        L_1(x, w) = integral T_c (beta_R n_R Phi_R + beta_M n_M Phi_HG)(w . sun) T_sun dt
+                    + T_c,g T_sun mu_s,g albedo / pi
 
-        (J, H)(x) = (1 / 4 pi) sum_w (1, w) [L_1(x, w) + integral T' Q(p, w) dt + T'_g albedo E(ground point) / pi]
+    * The second, by direction: L_1 at the nodes in-scattered with the phase functions on the direction grid
+      (S_1, the haze's with its cone of f_c taken out, (1 - f_c) Phi_c: :func:`_view_weights`), read at each step's
+      point for the direction it looks along (linearly between the nodes), and carried with T':
+
+        L_2(x, w) = integral T' (beta_R n_R S_1R + beta_M n_M S_1M)(p, w) dt + T'_g albedo E_1(ground point) / pi
+
+      with E_1 the ground's irradiance from L_1. Until stop 47 the second order was the P1 field's as well: a field as
+      peaked as the haze's light around a low sun (its aureole) is far from J + 3 H . w, and the delta cut, which
+      keeps all of the peak on the sun's line, left the light of a Martian sunset 1.13x too bright toward the sun
+      and 0.97x away (0.9x in blue). With the whole peak resolved (f_c = 0) the grid spread the aureole over its
+      22.5 deg cells: the Martian sunset within 3 % but an Earth sunset's red toward the sun 0.8-0.87x and the blue
+      hour 11 %. The cut between the two was swept over 5-45 deg (docs/quality.md): 20-35 deg improve every low-sun
+      case.
+    * The third and higher orders: at every node the light of the second and higher orders is described by its mean
+      radiance J and its first moment H = (1 / 4 pi) integral L w dOmega (two components, up and toward the sun: the
+      light is symmetric about the sun's plane), the P1 field L(w) ~ J + 3 H . w, and a point that scatters it sends
+      J sigma_s' + 3 (g - f) beta_M n_M H . w back along w (Rayleigh's mean cosine is 0). With Q(p, w) that emission,
+      read off the nodes bilinearly, and the Lambertian ground of ``ground_albedo`` lit by the sky's irradiance E
+      (from the same field over the upper hemisphere):
+
+        (J, H)(x) = (1 / 4 pi) sum_w (1, w) [L_2(x, w) + integral T' Q(p, w) dt + T'_g albedo E(ground point) / pi]
                     dOmega
 
-    is linear in the nodes' (J, H): one linear solve, (I - A) X = X_1, over 3 unknowns per node and channel
-    (:attr:`psi` is J, :attr:`first_moment` H). The radiance field by direction is then
+      is linear in the nodes' (J, H): one linear solve, (I - A) X = X_2, over 3 unknowns per node and channel
+      (:attr:`psi` and :attr:`first_moment` add the first order's J and H).
 
-        L(x, w) = L_1(x, w) + integral T' Q(p, w) dt + T'_g albedo E(ground point) / pi,
+    The radiance field by direction is then
+
+        L(x, w) = L_1(x, w) + L_2(x, w) + integral T' Q(p, w) dt + T'_g albedo E(ground point) / pi,
 
     and a view ray looking along v in-scatters it with the true phase functions at its own point (the light arriving
     from w is scattered by the angle whose cosine is w . v):
 
         S_i(x, v) = sum_w Phi_i(w . v) L(x, w) dOmega,      in-scattering sigma_R S_R + sigma_M S_M,
 
-    tabulated over v's zenith cosine and its azimuth from the sun (:meth:`scattered`; the discrete phase weights of
-    each v normalised to sum to 1, so the sharp forward peak of the haze neither gains nor loses light between the
-    directions). So the second order is exact up to the direction sampling (and the delta cut of the haze's peak);
-    the third and higher orders are a P1 field at their last-but-one point.
+    tabulated over v's zenith cosine and its azimuth from the sun (:meth:`scattered`; the phase weights of each v
+    averaged over the grid's cells and normalised to sum to 1, :func:`_cell_weights`, so the sharp forward peak of
+    the haze neither gains nor loses light between the directions). So the second order seen by the camera is exact
+    up to the direction sampling, the third up to the sampling and the cone f_c; the fourth and higher are a P1 field
+    at their last-but-one point.
 
     Measured against the complete reference (``tools/bench_accuracy.py --paths 4000``, Monte Carlo, every order;
     worst pixel luminance error, docs/quality.md), three steps:
@@ -454,12 +560,17 @@ class MultipleScatteringTable:
       1.1-3.0 %, the sunsets 5.4 % / 6.6 %, Mars noon 9.7 %, blue hour 23 %, overcast 34 %, Mars sunset 39 %. An
       isotropic third order cannot hold that the light of a forward-scattering haze at a low sun keeps travelling
       away from the sun: the overcast 0.6-0.8x the reference, Mars at sunset 0.6x toward the sun and 1.2-1.9x away.
-    * With the first moment and the delta-Eddington split (this table): by day 1.1-2.1 %, the sunsets 1.7 % /
+    * With the first moment and the delta-Eddington split (stops 44-46): by day 1.1-2.1 %, the sunsets 1.7 % /
       1.6 %, Mars noon 5.5 %, overcast 4.5 %, blue hour 8.7 %, Mars sunset 18 % (at 24 altitudes and 16 steps;
       32 and 24 gave the same within 0.12 point but the overcast's 5.7 %). The first moment alone (the true
       phase function's g, no delta cut) swung Mars the other way (0.3-0.4x away from the sun in blue: a P1 field of
       a peaked phase function goes negative behind it) and left the overcast 0.85-0.95x; the delta cut alone
       (f = g, an isotropic rest) 1.2-1.6x too bright.
+    * With the first two orders by direction and the haze's peak cut at 30 deg for the second (this table, stop
+      47): by day 1.1-2.0 %, the sunsets 2.0 % / 1.6 %, Mars noon 5.1 %, overcast 3.4 %, blue hour 8.2 % (the
+      reference's own noise 7.7 % at these paths), Mars sunset 6.1 %. Against 4x the paths (96 000 a ray and
+      channel): overcast 3.8 %, blue hour 5.3 % (xy 0.0101), Mars sunset 6.0 % (xy 0.0102), where the table before
+      gave 5.4 %, 8.2 % (xy 0.0146) and 18.7 %.
 
     The directions, steps and view grid were chosen by the bench (more directions change no day case by over 0.5 %
     and the low suns by a few %); 24 altitudes and 16 steps since stop 46 (32 and 24 before: twice the build, the
@@ -516,10 +627,10 @@ class MultipleScatteringTable:
         def march(j: int) -> None:             # the rows of altitude j's nodes: each call writes its own slices
             rays = all_rays[j]
             t_sun = sun_table(np.broadcast_to(rays.radius_m, rays.sun_cosine.shape), rays.sun_cosine)  # (M, D, S, 3)
-            light = np.sum(t_sun * (rays.step_rayleigh[None] * phase_r + rays.step_mie[None] * phase_m), axis=2)
+            light = np.sum(t_sun * (rays.first_rayleigh[None] * phase_r + rays.first_mie[None] * phase_m), axis=2)
             lit_ground = np.maximum(rays.ground_sun_cosine, 0.0)[..., None] * sun_table(
                 np.broadcast_to(rays.ground_radius_m, rays.ground_sun_cosine.shape) + 1e-3, rays.ground_sun_cosine)
-            once[j] = light + (rays.to_ground / np.pi)[None] * lit_ground
+            once[j] = light + (rays.first_to_ground / np.pi)[None] * lit_ground
             emitted = self._emission(rays)                                          # (3, M, D, S, 3)
             # (out a, in b): sum over w of project_a(w) dOmega / 4 pi times what the steps along w send of b
             weights = emitted[None] * (project * share[:, 0])[:, None, None, :, None, None]
@@ -538,73 +649,95 @@ class MultipleScatteringTable:
 
         in_parallel(march, n_altitudes)
         sky_once, sky_more = sky["once"], sky["more"]
-        # The ground reflects the sky's light as a Lambertian surface: radiance albedo / pi E, E = E_1 + E_B X the
-        # irradiance from the upper hemisphere (not J at the ground, whose mean over every direction would count the
-        # ground's own light as lighting it).
+        _, weights_r, weights_m, weights_cut = _view_weights(n_zenith, n_azimuth, n_view_cosines,
+                                                             n_view_azimuths, tuple(_mie_g(atm)))
+        view_shape = (n_altitudes, n_cosines, n_view_cosines, n_view_azimuths, 3)
+
+        def view_table(field: np.ndarray, haze_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """(S_R and S_M as (nodes, 6) rows, float32; the same beside the next sun cosine's, as
+            :attr:`_with_next_cosine`) of a field by marched direction (altitudes, sun cosines, D, 3)."""
+            field = field[:, :, mirror]                                             # every direction of the grid
+            rayleigh = np.stack([field[..., ch] @ weights_r.T for ch in range(3)], axis=-1)       # (J, M, V, 3)
+            mie = np.stack([field[..., ch] @ haze_weights[..., ch].T for ch in range(3)], axis=-1)
+            # Not below 0: a P1 field can dip below it behind a peaked phase function, by under 1e-5 of the table's
+            # largest value (measured: a backward haze g -0.999, Mars' dust 30x at g 0.99).
+            rows = np.maximum(np.stack([rayleigh.reshape(view_shape), mie.reshape(view_shape)],
+                                       axis=-2).reshape(-1, 6), 0.0).astype(np.float32)
+            # Each row beside the same node at the next sun cosine (zeros past the last, which no lookup reaches), so
+            # :meth:`_lookup` reads both sun-cosine nodes of a corner in one gather.
+            step = n_view_cosines * n_view_azimuths
+            return rows, np.concatenate([rows, np.concatenate([rows[step:], np.zeros((step, 6), np.float32)])], axis=1)
+
+        # The first order scattered once more, by direction: L_2(x, w) = integral T' (beta_R n_R S_1R + beta_M n_M
+        # S_1M)(p, w) dt + T'_g albedo E_1 / pi, S_1 the in-scattering of L_1 with the haze's forward cone taken out.
+        first_rows = view_table(once, weights_cut)[1]
+        second = np.zeros_like(once)
+
+        def scatter_once(j: int) -> None:
+            rays = all_rays[j]
+            mu = rays.sun_cosine
+            up = np.broadcast_to(rays.view_up[None], mu.shape)
+            across = np.sqrt(np.maximum(1.0 - mu * mu, 0.0))
+            toward_sun = np.where(across > 1e-6, (self._along[..., None] - mu * up) / np.maximum(across, 1e-6), 0.0)
+            # linear between the sun-cosine nodes: log-linear left the blue hour 2 points darker (the light at the
+            # points the rays cross falls less steeply than between the nodes' own)
+            s_r, s_m = self._lookup(first_rows, np.broadcast_to(rays.altitude_m, mu.shape), mu, up, toward_sun,
+                                    log_linear=False)
+            second[j] = np.sum(rays.step_rayleigh[None] * s_r + rays.step_mie[None] * s_m, axis=2)
+            _, k = self._indices(0.0, rays.ground_sun_cosine)
+            lit = np.stack([np.interp(k, np.arange(n_cosines), sky_once[:, ch]) for ch in range(3)], axis=-1)
+            second[j] += rays.to_ground[None] / np.pi * lit
+
+        in_parallel(scatter_once, n_altitudes)
+        # The ground reflects the sky's light as a Lambertian surface: radiance albedo / pi E, E from the upper
+        # hemisphere (not J at the ground, whose mean over every direction would count the ground's own light).
+        sky_second = np.einsum("mdc,d->mc", second[0], upward)                     # E_2 at the ground, (M_g, 3)
         once_moments = np.einsum("jmdc,ad->ajmc", once, project * share[:, 0])     # J_1, H_1 (3, J, M, 3)
-        first = once_moments[0]                                                     # J_1
-        source = np.concatenate([once_moments[a].reshape(n_nodes, 3)
-                                 + np.concatenate([np.einsum("cmg,gc->mc", rows[a], sky_once) for rows in ground_rows])
-                                 for a in range(_MOMENTS)])                          # (3N, 3): J_1, H_1
+        second_moments = np.einsum("jmdc,ad->ajmc", second, project * share[:, 0])
+        reflected = [np.concatenate([np.einsum("cmg,gc->mc", rows[a], sky_second) for rows in ground_rows])
+                     for a in range(_MOMENTS)]                                      # the ground's E_2, reflected
+        source = np.concatenate([second_moments[a].reshape(n_nodes, 3) + reflected[a]
+                                 for a in range(_MOMENTS)])                          # (3N, 3): J_2, H_2
         for a in range(_MOMENTS):                  # (3 ch, N, M_g) @ (3 ch, M_g, 3N): one batched product
             transport[:, a * n_nodes:(a + 1) * n_nodes] += np.concatenate(
                 [rows[a] for rows in ground_rows], axis=1) @ sky_more
         solved = np.stack([solve_orders(transport[ch], source[:, ch]) for ch in range(3)], axis=-1)
         transport = None                           # its 240 MB freed before the field is gathered
-        moments = solved.reshape(_MOMENTS, n_altitudes, n_cosines, 3)
+        higher = solved.reshape(_MOMENTS, n_altitudes, n_cosines, 3)               # J, H of every order from the 2nd
+        moments = once_moments + higher
         #: Psi_ms (altitudes, sun cosines, 3): the mean radiance of light scattered at least once, 1/sr per unit E_top.
         self.psi = np.maximum(moments[0], 0.0)
         #: H (altitudes, sun cosines, 2, 3): its first moment (1 / 4 pi) integral L w dOmega, along the local zenith and
         #: the horizontal toward the sun, 1/sr per unit E_top.
         self.first_moment = np.moveaxis(moments[1:], 0, 2).copy()
         #: J_1 (altitudes, sun cosines, 3): the mean radiance of light scattered exactly once.
-        self.single = first
-        sky_irradiance = sky_once + np.einsum("cgn,nc->gc", sky_more, solved)        # E at the ground, (M_g, 3)
-        # Between sun-cosine nodes J is read log-linearly (it falls by orders of magnitude across the terminator) and
-        # H as J times the interpolated H / J, which changes slowly; |H| <= J for any radiance field that is nowhere
-        # negative, which bounds the ratio where J is the solve's rounding (deep in the planet's shadow).
-        mean = np.broadcast_to(moments[0][:, :, None], self.first_moment.shape)
-        anisotropy = np.clip(np.divide(self.first_moment, mean, out=np.zeros_like(mean), where=mean > 0.0),
-                             -1.0, 1.0).reshape(n_altitudes, n_cosines, 6)
-        field = once
+        self.single = once_moments[0]
+        sky_irradiance = sky_second + np.einsum("cgn,nc->gc", sky_more, solved)    # E_2 + E_B at the ground
+        # Between sun-cosine nodes the higher orders' J is read log-linearly (it falls by orders of magnitude across
+        # the terminator) and H as J times the interpolated H / J, which changes slowly; |H| <= J for any radiance
+        # field that is nowhere negative, which bounds the ratio where J is the solve's rounding.
+        higher_mean = np.maximum(higher[0], 0.0)
+        mean = np.broadcast_to(higher[0][:, :, None], (n_altitudes, n_cosines, 2, 3))
+        anisotropy = np.clip(np.divide(np.moveaxis(higher[1:], 0, 2), mean, out=np.zeros_like(mean),
+                                       where=mean > 0.0), -1.0, 1.0).reshape(n_altitudes, n_cosines, 6)
+        field = once + second
 
-        def gather(j: int) -> None:            # + the higher orders by direction, at altitude j's nodes
+        def gather(j: int) -> None:            # + the third and higher orders by direction, at altitude j's nodes
             rays = all_rays[j]
             emitted = self._emission(rays)
             altitude_m = np.broadcast_to(rays.altitude_m, rays.sun_cosine.shape)
             i, k = self._indices(altitude_m, rays.sun_cosine)
             shape = _bilinear(anisotropy, i, k).reshape(i.shape + (2, 3))          # H / J, linear
-            field[j] += np.sum(self(altitude_m, rays.sun_cosine)                    # J, log-linear in the sun
+            field[j] += np.sum(_linear_then_log_linear(higher_mean, i, k)           # J, log-linear in the sun
                                * (emitted[0] + emitted[1] * shape[..., 0, :] + emitted[2] * shape[..., 1, :]), axis=2)
             _, k = self._indices(0.0, rays.ground_sun_cosine)
             lit = np.stack([np.interp(k, np.arange(n_cosines), sky_irradiance[:, ch]) for ch in range(3)], axis=-1)
             field[j] += rays.to_ground[None] / np.pi * lit
 
         in_parallel(gather, n_altitudes)
-        view_z = np.linspace(-1.0, 1.0, n_view_cosines)[:, None]
-        view_a = np.linspace(0.0, np.pi, n_view_azimuths)[None, :]
-        across = np.sqrt(1.0 - view_z ** 2)
-        views = np.stack(np.broadcast_arrays(across * np.cos(view_a), across * np.sin(view_a), view_z), axis=-1)
-        field = field[:, :, mirror]                                                 # every direction of the grid
-        cosines = views.reshape(-1, 3) @ self._dirs.T                               # (V, D): w . v
-        weights_r = phase_rayleigh(cosines) * solid_angle
-        weights_m = phase_hg(cosines, atm.mie_g) * solid_angle[:, None]             # (V, D, 3)
-        weights_r = weights_r / weights_r.sum(axis=1, keepdims=True)
-        weights_m = weights_m / weights_m.sum(axis=1, keepdims=True)
-        view_shape = (n_altitudes, n_cosines, n_view_cosines, n_view_azimuths, 3)
-        rayleigh = np.stack([field[..., ch] @ weights_r.T for ch in range(3)], axis=-1)       # (J, M, V, 3)
-        mie = np.stack([field[..., ch] @ weights_m[..., ch].T for ch in range(3)], axis=-1)
         #: S_R and S_M (altitudes, sun cosines, view cosines, view azimuths, 2, 3), flattened to (nodes, 6) rows;
-        #: float32, half the memory read. Not below 0: a P1 field can dip below it behind a peaked phase function,
-        #: by under 1e-5 of the table's largest value (measured: a backward haze g -0.999, Mars' dust 30x at g 0.99).
-        self.in_scattering = np.maximum(np.stack([rayleigh.reshape(view_shape), mie.reshape(view_shape)],
-                                                 axis=-2).reshape(-1, 6), 0.0).astype(np.float32)
-        # Each row beside the same node at the next sun cosine (zeros past the last, which no lookup reaches), so
-        # :meth:`scattered` reads both sun-cosine nodes of a corner in one gather.
-        next_cosine = n_view_cosines * n_view_azimuths
-        self._with_next_cosine = np.concatenate(
-            [self.in_scattering, np.concatenate([self.in_scattering[next_cosine:],
-                                                 np.zeros((next_cosine, 6), np.float32)])], axis=1)
+        #: float32, half the memory read. The view ray scatters with the true phase functions (:func:`_view_weights`).
+        self.in_scattering, self._with_next_cosine = view_table(field, weights_m)
 
     def _rays(self, altitude_m: float) -> _Rays:
         """March the rays from the nodes at ``altitude_m`` (module docstring of the class)."""
@@ -625,6 +758,10 @@ class MultipleScatteringTable:
         tau_step = (local_extinction(atm, n_r, n_m, h) - forward * atm.mie_scattering * n_m) * dt
         tau_through = np.cumsum(tau_step, axis=1)
         seen = np.exp(-(tau_through - 0.5 * tau_step)) * dt                         # T' dt to each step's midpoint
+        # T_c: the first order's light crosses the air losing all but the forward cone (grid_forward_fraction)
+        cone_step = (local_extinction(atm, n_r, n_m, h) - grid_forward_fraction(atm) * atm.mie_scattering * n_m) * dt
+        cone_through = np.cumsum(cone_step, axis=1)
+        seen_first = np.exp(-(cone_through - 0.5 * cone_step)) * dt
         turning = atm.rayleigh_scattering * n_r + (1.0 - forward) * atm.mie_scattering * n_m   # sigma_s'
         r_end = np.sqrt(np.maximum(r0 * r0 + 2.0 * r0 * c * length + length * length, 0.0))
         # sun zenith cosine along the rays, for every sun position: (x . sun) / |x|, x = (0, 0, r0) + t w
@@ -635,7 +772,10 @@ class MultipleScatteringTable:
                      radius_m=radius,
                      to_ground=np.where(hits[:, None], np.exp(-tau_through[:, -1]) * self._albedo, 0.0),
                      ground_radius_m=r_end, ground_sun_cosine=(r0 * mu_s[:, None] + length * self._along) / r_end,
-                     view_up=(t + r0 * c[:, None]) / np.maximum(radius, 1.0))
+                     view_up=(t + r0 * c[:, None]) / np.maximum(radius, 1.0),
+                     first_rayleigh=seen_first * atm.rayleigh_scattering * n_r,
+                     first_mie=seen_first * atm.mie_scattering * n_m,
+                     first_to_ground=np.where(hits[:, None], np.exp(-cone_through[:, -1]) * self._albedo, 0.0))
 
     def _indices(self, altitude_m: ArrayLike, cos_zenith: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Fractional node indices (altitude row, sun-cosine column) of points, as :meth:`__call__` reads them."""
@@ -701,6 +841,12 @@ class MultipleScatteringTable:
         +27 % and +50 %, docs/reference_sky.md), log-linear 0.96x and 0.99x (the zenith 0.99x and 1.00x, from 1.05x
         and 1.11x); by day the two differ by under 0.3 %. Where either node is 0 (no light at all) the
         interpolation is linear."""
+        return self._lookup(self._with_next_cosine, altitude_m, cos_zenith, view_cos_zenith, view_toward_sun)
+
+    def _lookup(self, table: np.ndarray, altitude_m: ArrayLike, cos_zenith: ArrayLike, view_cos_zenith: ArrayLike,
+                view_toward_sun: ArrayLike, *, log_linear: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`scattered` of a ``table`` laid out as :attr:`_with_next_cosine`; between the sun-cosine nodes
+        log-linear, or linear (``log_linear=False``)."""
         i, k = self._indices(altitude_m, cos_zenith)
         vz = np.clip(np.asarray(view_cos_zenith, dtype=np.float64), -1.0, 1.0)
         across = np.sqrt(np.maximum(1.0 - vz * vz, 1e-12))
@@ -716,17 +862,21 @@ class MultipleScatteringTable:
             base = base + low * stride
             pairs.append((1.0 - fraction, fraction))
         # linear in altitude and the view at the two sun-cosine nodes around the point (8 corners, each row holding
-        # both nodes), then log-linear between the two; in float32, the table's own precision (float64 changed the
+        # both nodes), then (log-)linear between the two; in float32, the table's own precision (float64 changed the
         # tiles by under 5e-7 relative and took twice the time)
         second = [[a * b for b in pairs[3]] for a in pairs[2]]
         both = np.zeros(coords[0].shape + (12,), np.float32)
         for corner in range(8):
             bits = [(corner >> axis) & 1 for axis in range(3)]
             row = base + bits[0] * strides[0] + bits[1] * strides[2] + bits[2] * strides[3]
-            rows = np.take(self._with_next_cosine, row, axis=0)      # np.take: half the time of [row] here
+            rows = np.take(table, row, axis=0)      # np.take: half the time of [row] here
             rows *= (pairs[0][bits[0]] * second[bits[1]][bits[2]])[..., None]
             both += rows
-        result = _log_linear(both[..., :6], both[..., 6:], pairs[1][1][..., None]).astype(np.float64)
+        fraction = pairs[1][1][..., None]
+        if log_linear:
+            result = _log_linear(both[..., :6], both[..., 6:], fraction).astype(np.float64)
+        else:
+            result = (both[..., :6] + fraction * (both[..., 6:] - both[..., :6])).astype(np.float64)
         return result[..., :3], result[..., 3:]
 
 
