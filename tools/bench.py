@@ -373,9 +373,8 @@ NOTES = """## What the numbers say
   properties (plus the world's sky values) and never touches a material. An edit of the air or the haze also remakes
   the E_sun table the sun's drivers read (`physics.sun.sun_irradiance_table`, 0.7 ms: its optical depths per unit
   coefficient are kept per geometry) and rewrites their keys: 4.6-5.5 ms a sync against 3.4-4.4 ms before the
-  drivers (5.2.3, interleaved A/B of `tools/bench_scale.py`, two runs each, stop 45); this run 4.35-5.11 ms, the
-  one row above 5 ms (4.5.15, 5000 materials) 4.89 ms in the run before: the target is met within this machine's
-  noise, not with a margin.
+  drivers (5.2.3, interleaved A/B of `tools/bench_scale.py`, two runs each, stop 45); this run 4.26-4.81 ms (the
+  run before 4.35-5.11 ms, one row above 5 ms): the target is met within this machine's noise, not with a margin.
 - **Enable** is dominated by adding one group node per material. Per material two RNA edits remain,
   `nodes.new` and the `node.node_tree` write; every other access is a read (node locations and widths with
   one `foreach_get` each, the new location with one `foreach_set`, which skips the node-tree update). The material
@@ -393,8 +392,8 @@ NOTES = """## What the numbers say
 - **Per edit**: `tools/bench_node_edits.py` times the two edits against the file's size: `nodes.new` 26-27 us and
   the `node_tree` write 22 us in 4.5.15, 22 us and 19 us in 5.2.3 and 5.3.0, the same with 1000 and with 5000
   materials, so an enable grows linearly with the materials.
-- **The 1 s target**: 1.57-1.63 s in this run on the three versions (1.50-1.57 s in the run before, the same code
-  in the enable: building the scene, not Atmos, also took 6.4-6.9 s against 6.0-6.8 s), on an Intel Xeon where the
+- **The 1 s target**: 1.50-1.60 s in this run on the three versions (1.57-1.63 s in the run before, the same code
+  in the enable: building the scene, not Atmos, took 5.9-6.7 s against 6.4-6.9 s), on an Intel Xeon where the
   runs before stop 45 had an AMD EPYC (1.01-1.11 s; the same code, interleaved on this machine, 1.53-1.59 s; building
   the scene 4.9-5.0 s there). Since Precise with multiple scattering became the default (December 2026) it was
   5.0-6.4 s, then
@@ -419,25 +418,34 @@ NOTES = """## What the numbers say
   or render whatever Atmos does (2.41 s on 5.2.3, `tools/measure_scene_tags.py`, below); the scale script
   evaluates it untimed before the sun-move rows, so since this run Refresh's row (0.5-0.7 s, 2.0-2.9 s before) no
   longer holds it. A preset load changes the atmosphere and so re-bakes the tables instead of the 20 ms target:
-  1.40-1.65 s (2.46-2.72 s in the run before: the tables below). The sun table's grids are kept when only
-  coefficients change; the tables 0.88-0.96 s on 2 cores (`tools/bench_tables.py`, above), 1.85-1.97 s before the
-  multiple-scattering table's 24 altitudes and 16 steps, about 4 s before its orders were solved by GMRES and its
-  altitudes built on threads; the tile 0.40-0.46 s (0.47-0.51 s before the lookups below, 0.75 s before the
+  1.60-1.92 s (1.40-1.65 s in the run before, 2.46-2.72 s before that: the tables below). The sun table's grids are
+  kept when only coefficients change; the tables 1.07-1.11 s on 2 cores (`tools/bench_tables.py`, above; 0.88-0.96 s
+  before stop 47's second order by direction, which took the Martian sunset from 18.7 % to 6.0 %), 1.85-1.97 s
+  before the multiple-scattering table's 24 altitudes and 16 steps, about 4 s before its orders were solved by GMRES
+  and its altitudes built on threads; the tile 0.40-0.46 s (0.47-0.51 s before the lookups below, 0.75 s before the
   threads). In the interface the panel's preset menu goes through the same worker thread as any edit (below).
-- **An atmosphere edit** re-bakes the per-atmosphere tables and the tile: 1.35 s in the background (the still
-  valley above; 2.66 s in the run before), so the 1 s target is not met on this 2-core machine. In the interface the
+- **An atmosphere edit** re-bakes the per-atmosphere tables and the tile: 1.39 s in the background (the still
+  valley above; 1.35 s in the run before, before stop 47's second order by direction, 2.66 s before that), so the
+  1 s target is not met on this 2-core machine. In the interface the
   bake runs on a worker thread (`blender/apply/precise_tables.py`, `bake_on_worker`, stop 46): the main thread's
   part of an edit (its sync, the hand-over to the worker 0.3 s after the last change, the image written when the
-  worker is done) is 6 ms, and the sky and haze catch up 1.3 s later (`tools/bench_animation.py`'s UI rows; the
+  worker is done) is 6 ms, and the sky and haze catch up 1.4 s later (`tools/bench_animation.py`'s UI rows; the
   `bpy` module has no event loop, so the rows call the timers' work themselves: `tests/blender/test_worker_bake.py`
   proves the worker writes the synchronous bake's table to the bit, and that a save first finishes it). What went:
   the multiple-scattering table at 24 altitudes and 16 steps instead of 32 and 24 (the tables 1.85-1.97 s ->
   0.88-0.96 s; the accuracy bench moved the day cases by at most 0.1 point, the sunsets, Mars and the blue hour by at
   most 0.12, the overcast 1 deg sun from 5.7 % to 4.5 %: docs/quality.md), and in the tile the table lookups by
   `np.take` (half the time of indexing the rows) and a log-linear interpolation that fixes only its dark cells
-  (0.47-0.51 s -> 0.40-0.46 s, the same bits). What is left of the table (cProfile, one thread, 1.7 s): the
-  transport matrix's rows, 27 weighted bincounts per altitude over 200 000 corner weights (0.7 s; `np.add.at` and a
-  sorted `reduceat` took 2.6-2.8x as long), the lookups 0.4 s, the march 0.15 s. Tried and dropped: fewer samples
+  (0.47-0.51 s -> 0.40-0.46 s, the same bits). Stop 47 spent 0.15-0.2 s of it again on accuracy: the table
+  scatters the first order once more by direction (a lookup of that light at each of the 1.2 million points its rays
+  cross, its phase weights averaged over the grid's cells, cached per haze g; docs/quality.md: the Martian sunset
+  18.7 -> 6.0 %, the blue hour 8.2 -> 5.3 %). What is left of the table (cProfile, one thread, 1.3 s in a quiet
+  moment): the transport matrix's rows, 27 weighted bincounts per altitude over 200 000 corner weights (0.57 s;
+  `np.add.at` and a sorted `reduceat` took 2.6-2.8x as long, and batched matrix products over each altitude cell's
+  points, the corners as dense rows of sun cosines, 1.6x: 16 times the products multiply a zero), the lookups
+  0.4 s, the march 0.15 s. In a worker thread the bincounts run at about twice their main-thread speed (numpy's
+  large temporaries there come from the thread's own heap; glibc's main arena gives the pages back and faults them
+  in again), which the table's threads already get. Tried and dropped: fewer samples
   along the tile's rays (49 instead of 65 moved a texel by up to 30 % near the planet's shadow), the
   multiple-scattering lookup at every second or fourth sample, interpolated between (0.38 / 0.28 s a tile, texels
   up to 0.7 % / 1.5 % off under the overcast). The resolution study that chose the table
@@ -466,11 +474,11 @@ NOTES = """## What the numbers say
   strength, are drivers on the lamp (`blender/apply/sun_drivers.py`, docs/sky_and_sun.md): Blender evaluates them in
   the depsgraph update of the move itself, and what Atmos still writes on a move (the sun's status and the ground
   sunlight the panel shows) goes in as ID properties, which tag nothing. A sun turned in azimuth (no table depends
-  on it) costs a depsgraph update of 88-102 ms with 20000 objects against 75-92 ms for Blender alone, Atmos's
-  handler 10-11 ms of it (the rows above); turned in elevation it also re-bakes the Precise tile, at once in the
+  on it) costs a depsgraph update of 85-95 ms with 20000 objects against 73-86 ms for Blender alone, Atmos's
+  handler about 10 ms of it (the rows above); turned in elevation it also re-bakes the Precise tile, at once in the
   background (0.68-0.79 s the move, tile included, against 1.20-1.29 s before the drivers: 5.2.3, interleaved A/B,
   two runs each), 0.3 s after the last move in the interface, on a worker thread since stop 46 (the still valley's
-  elevation move: 6 ms on the main thread, the worker's tile 0.38 s; `tools/bench_animation.py`, above). Before,
+  elevation move: 6 ms on the main thread, the worker's tile 0.37 s; `tools/bench_animation.py`, above). Before,
   each move's sync wrote the shader parameters
   and tagged the scene, and a tagged scene re-evaluates every object;
   `.venv/bpy-5.2.3/bin/python tools/measure_scene_tags.py` measured what each tag costs (5000 materials, 20000

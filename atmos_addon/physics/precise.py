@@ -575,14 +575,15 @@ class MultipleScatteringTable:
     The directions, steps and view grid were chosen by the bench (more directions change no day case by over 0.5 %
     and the low suns by a few %); 24 altitudes and 16 steps since stop 46 (32 and 24 before: twice the build, the
     same errors within 0.12 point but the overcast's, 5.7 % then; ``tools/measure_ms_resolution.py``). Cost, on this
-    project's 2-core machine, with the sun table: 0.88-0.96 s (1.35-1.44 s on one thread; ``tools/bench_tables.py``,
-    stop 46). The light is symmetric about the sun's plane, so only the half of the directions with w_y > 0 is
-    marched and the other half mirrored (the same numbers for half the work: 4 s -> 2.7 s with J alone); the
-    orders are summed by GMRES (:func:`solve_orders`, 0.02-0.03 s a channel where LU took 0.35 s: 4.0 -> 2.4 s);
-    the altitudes' rows are built on :data:`WORKERS` threads (at 32 altitudes and 24 steps 2.3-2.4 s on one
-    thread, 1.4-1.6 s on 2 cores; the same numbers to the bit). What is left (one thread): the transport matrix's
-    rows, 27 weighted bincounts per altitude (0.7 s of 1.7 s; ``np.add.at`` and a sorted ``reduceat`` took
-    2.6-2.8x as long), the lookups 0.4 s, the march 0.15 s.
+    project's 2-core machine, with the sun table: 1.07-1.11 s (1.54-1.71 s on one thread; ``tools/bench_tables.py``,
+    stop 47; 0.88-0.96 s before the second order by direction). The light is symmetric about the sun's plane, so
+    only the half of the directions with w_y > 0 is marched and the other half mirrored (the same numbers for half
+    the work: 4 s -> 2.7 s with J alone); the orders are summed by GMRES (:func:`solve_orders`, 0.02-0.03 s a
+    channel where LU took 0.35 s: 4.0 -> 2.4 s); the altitudes' rows are built on :data:`WORKERS` threads (at 32
+    altitudes and 24 steps 2.3-2.4 s on one thread, 1.4-1.6 s on 2 cores; the same numbers to the bit). What is
+    left (one thread, 1.3 s in a quiet moment): the transport matrix's rows, 27 weighted bincounts per altitude
+    (0.57 s; ``np.add.at`` and a sorted ``reduceat`` took 2.6-2.8x as long, batched matrix products over each
+    altitude cell's points 1.6x), the lookups 0.4 s, the march 0.15 s.
     """
 
     def __init__(self, atm: Atmosphere, sun_table: SunTransmittanceTable, ground_albedo=DEFAULT_GROUND_ALBEDO,
