@@ -661,7 +661,7 @@ def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
     the table interpolates it log-linearly between its sun-cosine nodes, so 33 nodes give what 65 give (S_R + S_M
     in luminance, the clear preset, ground albedo 0.3, 4 altitudes x 7 suns x 64 views: measured 0.96-1.03 at
     suns 4-8 deg down, within 1 % from 2 deg down up; 0.96-1.06 since the table scatters the first order once
-    more by direction, stop 47, its points read linearly between the nodes: 1.06 at 8 deg down, 0.97-1.03 at 4 and
+    more by direction, stop 47, its points read linearly between the nodes: 1.06 at 8 deg down, 0.96-1.03 at 4 and
     6). Linearly, the same 33 nodes made it up to 1.31x too bright
     at 4-8 deg down (the twilight sky away from the sun +27 % and +50 % against the spectral reference at -4 and
     -6 deg); 1.19x since the table carries the light's first moment (December 2026)."""
