@@ -439,8 +439,8 @@ NOTES = """## What the numbers say
   (0.47-0.51 s -> 0.40-0.46 s, the same bits). Stop 47 spent 0.15-0.2 s of it again on accuracy: the table
   scatters the first order once more by direction (a lookup of that light at each of the 1.2 million points its rays
   cross, its phase weights averaged over the grid's cells, cached per haze g; docs/quality.md: the Martian sunset
-  18.7 -> 6.0 %, the blue hour 8.2 -> 5.3 %). What is left of the table (cProfile, one thread, 1.3 s in a quiet
-  moment): the transport matrix's rows, 27 weighted bincounts per altitude over 200 000 corner weights (0.57 s;
+  18.7 -> 6.0 %, the blue hour 8.2 -> 5.3 %). What is left of the table (one thread, 1.54-1.71 s above): the
+  transport matrix's rows, 27 weighted bincounts per altitude over 200 000 corner weights (0.57 s under cProfile;
   `np.add.at` and a sorted `reduceat` took 2.6-2.8x as long, and batched matrix products over each altitude cell's
   points, the corners as dense rows of sun cosines, 1.6x: 16 times the products multiply a zero), the lookups
   0.4 s, the march 0.15 s. In a worker thread the bincounts run at about twice their main-thread speed (numpy's

@@ -581,9 +581,9 @@ class MultipleScatteringTable:
     the work: 4 s -> 2.7 s with J alone); the orders are summed by GMRES (:func:`solve_orders`, 0.02-0.03 s a
     channel where LU took 0.35 s: 4.0 -> 2.4 s); the altitudes' rows are built on :data:`WORKERS` threads (at 32
     altitudes and 24 steps 2.3-2.4 s on one thread, 1.4-1.6 s on 2 cores; the same numbers to the bit). What is
-    left (one thread, 1.3 s in a quiet moment): the transport matrix's rows, 27 weighted bincounts per altitude
-    (0.57 s; ``np.add.at`` and a sorted ``reduceat`` took 2.6-2.8x as long, batched matrix products over each
-    altitude cell's points 1.6x), the lookups 0.4 s, the march 0.15 s.
+    left (one thread, 1.54-1.71 s in that bench): the transport matrix's rows, 27 weighted bincounts per altitude
+    (0.57 s under cProfile; ``np.add.at`` and a sorted ``reduceat`` took 2.6-2.8x as long, batched matrix products
+    over each altitude cell's points 1.6x), the lookups 0.4 s, the march 0.15 s.
     """
 
     def __init__(self, atm: Atmosphere, sun_table: SunTransmittanceTable, ground_albedo=DEFAULT_GROUND_ALBEDO,
