@@ -315,6 +315,7 @@ def _direction_grid(n_zenith: int, n_azimuth: int) -> tuple[np.ndarray, np.ndarr
 #: direction grid. Chosen by the accuracy bench over 20-35 deg (docs/quality.md): a narrower cut sends light the grid
 #: cannot place (its azimuth step is 22.5 deg) off the sun's line, a wider one keeps too much of it on that line.
 GRID_FORWARD_CUT_DEG = 30.0
+_CUT_COSINE = math.cos(math.radians(GRID_FORWARD_CUT_DEG))
 
 
 def grid_forward_fraction(atm: Atmosphere) -> np.ndarray:
@@ -328,7 +329,7 @@ def _cone_fraction(g: np.ndarray) -> np.ndarray:
     2 pi integral_{mu_c}^1 (Phi(mu) - Phi(mu_c)) dmu, with
     2 pi integral_{mu_c}^1 Phi dmu = (1 - g^2) / (2 g) (1 / (1 - g) - 1 / sqrt(1 + g^2 - 2 g mu_c))."""
     g = np.asarray(g, dtype=np.float64)
-    mu_c = math.cos(math.radians(GRID_FORWARD_CUT_DEG))
+    mu_c = _CUT_COSINE
     safe = np.where(g > 0.0, g, 0.5)
     cone = (1.0 - safe ** 2) / (2.0 * safe) * (1.0 / (1.0 - safe) - 1.0 / np.sqrt(1.0 + safe ** 2 - 2.0 * safe * mu_c))
     flat = 2.0 * np.pi * (1.0 - mu_c) * phase_hg(mu_c, safe)
@@ -339,9 +340,8 @@ def _cut_phase_hg(mu: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Henyey-Greenstein (..., 3) with its forward cone (within :data:`GRID_FORWARD_CUT_DEG`, where g > 0) flattened
     to the value at the cone's edge: the part of the phase function left once :func:`grid_forward_fraction` is
     taken out (not normalised)."""
-    mu_c = math.cos(math.radians(GRID_FORWARD_CUT_DEG))
     mu = np.asarray(mu)
-    return np.where((mu[..., None] > mu_c) & (g > 0.0), phase_hg(mu_c, g), phase_hg(mu, g))
+    return np.where((mu[..., None] > _CUT_COSINE) & (g > 0.0), phase_hg(_CUT_COSINE, g), phase_hg(mu, g))
 
 
 def _cell_weights(views: np.ndarray, n_zenith: int, n_azimuth: int, phase: Callable, sub: int = 8) -> np.ndarray:
@@ -407,6 +407,7 @@ class _Rays:
     ground_radius_m: np.ndarray   #: (D,) radius where the ray ends
     ground_sun_cosine: np.ndarray  #: (M, D) sun zenith cosine at the ray's end
     view_up: np.ndarray            #: (D, S) w . up_p: the ray's direction against the local zenith at each step
+    toward_sun: np.ndarray         #: (M, D, S) w . sun_p: against the horizontal toward the sun there (0 under it)
     first_rayleigh: np.ndarray     #: (D, S, 3) T_c beta_R n_R dt: T_c the transmittance less the forward cone only
     first_mie: np.ndarray          #: (D, S, 3) T_c beta_M n_M dt
     first_to_ground: np.ndarray    #: (D, 3) T_c,ground albedo where the ray meets the ground, else 0
@@ -674,20 +675,23 @@ class MultipleScatteringTable:
         first_rows = view_table(once, weights_cut)[1]
         second = np.zeros_like(once)
 
+        def ground_light(rays: _Rays, irradiance: np.ndarray) -> np.ndarray:
+            """(M, D, 3): T'_g albedo E / pi, what the Lambertian ground sends back along each ray that meets it, E
+            (the ground's sun cosines, 3) read at the ray's end."""
+            _, k = self._indices(0.0, rays.ground_sun_cosine)
+            lit = np.stack([np.interp(k, np.arange(n_cosines), irradiance[:, ch]) for ch in range(3)], axis=-1)
+            return rays.to_ground[None] / np.pi * lit
+
         def scatter_once(j: int) -> None:
             rays = all_rays[j]
             mu = rays.sun_cosine
             up = np.broadcast_to(rays.view_up[None], mu.shape)
-            across = np.sqrt(np.maximum(1.0 - mu * mu, 0.0))
-            toward_sun = np.where(across > 1e-6, (self._along[..., None] - mu * up) / np.maximum(across, 1e-6), 0.0)
             # linear between the sun-cosine nodes (log-linearly the blue hour was 7.4 % off against 5.3 %, the
             # Martian sunset 5.7 % against 6.0 %: 96 000 reference paths)
-            s_r, s_m = self._lookup(first_rows, np.broadcast_to(rays.altitude_m, mu.shape), mu, up, toward_sun,
+            s_r, s_m = self._lookup(first_rows, np.broadcast_to(rays.altitude_m, mu.shape), mu, up, rays.toward_sun,
                                     log_linear=False)
             second[j] = np.sum(rays.step_rayleigh[None] * s_r + rays.step_mie[None] * s_m, axis=2)
-            _, k = self._indices(0.0, rays.ground_sun_cosine)
-            lit = np.stack([np.interp(k, np.arange(n_cosines), sky_once[:, ch]) for ch in range(3)], axis=-1)
-            second[j] += rays.to_ground[None] / np.pi * lit
+            second[j] += ground_light(rays, sky_once)
 
         in_parallel(scatter_once, n_altitudes)
         # The ground reflects the sky's light as a Lambertian surface: radiance albedo / pi E, E from the upper
@@ -731,9 +735,7 @@ class MultipleScatteringTable:
             shape = _bilinear(anisotropy, i, k).reshape(i.shape + (2, 3))          # H / J, linear
             field[j] += np.sum(_linear_then_log_linear(higher_mean, i, k)           # J, log-linear in the sun
                                * (emitted[0] + emitted[1] * shape[..., 0, :] + emitted[2] * shape[..., 1, :]), axis=2)
-            _, k = self._indices(0.0, rays.ground_sun_cosine)
-            lit = np.stack([np.interp(k, np.arange(n_cosines), sky_irradiance[:, ch]) for ch in range(3)], axis=-1)
-            field[j] += rays.to_ground[None] / np.pi * lit
+            field[j] += ground_light(rays, sky_irradiance)
 
         in_parallel(gather, n_altitudes)
         #: S_R and S_M (altitudes, sun cosines, view cosines, view azimuths, 2, 3), flattened to (nodes, 6) rows;
@@ -755,28 +757,37 @@ class MultipleScatteringTable:
         radius = np.sqrt(np.maximum(r0 * r0 + 2.0 * r0 * c[:, None] * t + t * t, 0.0))
         h = np.maximum(radius - r_ground, 0.0)
         n_r, n_m = np.exp(-h / atm.rayleigh_scale_height)[..., None], np.exp(-h / atm.mie_scale_height)[..., None]
+        extinction = local_extinction(atm, n_r, n_m, h)
+
+        def carried(kept: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """(T dt to each step's midpoint (D, S, 3), T to the ray's end (D, 3)), where ``kept`` of the haze's
+            scattering goes on as if not scattered."""
+            step = (extinction - kept * atm.mie_scattering * n_m) * dt
+            through = np.cumsum(step, axis=1)
+            return np.exp(-(through - 0.5 * step)) * dt, np.exp(-through[:, -1])
+
         forward = forward_fraction(atm)                # delta-Eddington: the haze's forward peak does not attenuate
-        tau_step = (local_extinction(atm, n_r, n_m, h) - forward * atm.mie_scattering * n_m) * dt
-        tau_through = np.cumsum(tau_step, axis=1)
-        seen = np.exp(-(tau_through - 0.5 * tau_step)) * dt                         # T' dt to each step's midpoint
-        # T_c: the first order's light crosses the air losing all but the forward cone (grid_forward_fraction)
-        cone_step = (local_extinction(atm, n_r, n_m, h) - grid_forward_fraction(atm) * atm.mie_scattering * n_m) * dt
-        cone_through = np.cumsum(cone_step, axis=1)
-        seen_first = np.exp(-(cone_through - 0.5 * cone_step)) * dt
+        seen, to_end = carried(forward)                                             # T'
+        seen_first, to_end_first = carried(grid_forward_fraction(atm))             # T_c: all but the forward cone
         turning = atm.rayleigh_scattering * n_r + (1.0 - forward) * atm.mie_scattering * n_m   # sigma_s'
         r_end = np.sqrt(np.maximum(r0 * r0 + 2.0 * r0 * c * length + length * length, 0.0))
         # sun zenith cosine along the rays, for every sun position: (x . sun) / |x|, x = (0, 0, r0) + t w
         mu_s = self._mu_s
-        return _Rays(altitude_m=h, sun_cosine=(r0 * mu_s[:, None, None] + t[None] * self._along[..., None]) / radius,
+        sun_cosine = (r0 * mu_s[:, None, None] + t[None] * self._along[..., None]) / radius
+        view_up = (t + r0 * c[:, None]) / np.maximum(radius, 1.0)
+        across = np.sqrt(np.maximum(1.0 - sun_cosine * sun_cosine, 0.0))
+        toward_sun = np.where(across > 1e-6, (self._along[..., None] - sun_cosine * view_up[None])
+                              / np.maximum(across, 1e-6), 0.0)
+        return _Rays(altitude_m=h, sun_cosine=sun_cosine,
                      step_scattering=seen * turning,
                      step_rayleigh=seen * atm.rayleigh_scattering * n_r, step_mie=seen * atm.mie_scattering * n_m,
                      radius_m=radius,
-                     to_ground=np.where(hits[:, None], np.exp(-tau_through[:, -1]) * self._albedo, 0.0),
+                     to_ground=np.where(hits[:, None], to_end * self._albedo, 0.0),
                      ground_radius_m=r_end, ground_sun_cosine=(r0 * mu_s[:, None] + length * self._along) / r_end,
-                     view_up=(t + r0 * c[:, None]) / np.maximum(radius, 1.0),
+                     view_up=view_up, toward_sun=toward_sun,
                      first_rayleigh=seen_first * atm.rayleigh_scattering * n_r,
                      first_mie=seen_first * atm.mie_scattering * n_m,
-                     first_to_ground=np.where(hits[:, None], np.exp(-cone_through[:, -1]) * self._albedo, 0.0))
+                     first_to_ground=np.where(hits[:, None], to_end_first * self._albedo, 0.0))
 
     def _indices(self, altitude_m: ArrayLike, cos_zenith: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Fractional node indices (altitude row, sun-cosine column) of points, as :meth:`__call__` reads them."""
@@ -793,13 +804,11 @@ class MultipleScatteringTable:
         field J + 3 H . w into J + 3 g' H . w; sigma_s' g' = (1 - f) beta_M g' = (g - f) beta_M for the haze, and
         Rayleigh's mean cosine is 0."""
         up = rays.view_up[None]                                                     # (1, D, S)
-        mu = rays.sun_cosine                                                        # (M, D, S)
-        across = np.sqrt(np.maximum(1.0 - mu * mu, 0.0))
-        toward_sun = np.where(across > 1e-6, (self._along[..., None] - mu * up) / np.maximum(across, 1e-6), 0.0)
         moment = 3.0 * (_mie_g(self.atm) - forward_fraction(self.atm)) * rays.step_mie   # (D, S, 3)
-        shape = mu.shape + (3,)
+        shape = rays.sun_cosine.shape + (3,)
         return np.stack([np.broadcast_to(rays.step_scattering[None], shape),
-                         np.broadcast_to(moment[None] * up[..., None], shape), moment[None] * toward_sun[..., None]])
+                         np.broadcast_to(moment[None] * up[..., None], shape),
+                         moment[None] * rays.toward_sun[..., None]])
 
     def _matrix_rows(self, altitude_m: np.ndarray, cos_zenith: np.ndarray, weights: np.ndarray) -> np.ndarray:
         """Rows of A for one altitude's M nodes, (..., 3 channels, M, nodes), from points of shape (M, ...) (the
