@@ -65,11 +65,13 @@ sun-strength unit. :func:`evaluate` reproduces the shader's float32 sampling ste
 
 from __future__ import annotations
 
+import collections
 import concurrent.futures
 import dataclasses
 import functools
 import math
 import os
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -960,13 +962,43 @@ class MultipleScatteringTable:
         return result[..., :3], result[..., 3:]
 
 
-@functools.lru_cache(maxsize=8)
-def atmosphere_tables(atm: Atmosphere, ground_albedo: tuple[float, float, float] = DEFAULT_GROUND_ALBEDO
-                      ) -> tuple[SunTransmittanceTable, MultipleScatteringTable]:
-    """The per-atmosphere tables (sun transmittance, multiple scattering), cached: they change with the
-    atmosphere's parameters only, never with the sun or the camera."""
+#: The multiple-scattering table of the first look after an atmosphere edit in the interface
+#: (``blender/apply/precise_tables.py``, :func:`atmosphere_tables` with ``preview=True``): half the altitudes and
+#: sun cosines, about a quarter of the build; the full table follows on the same worker. Against the complete
+#: reference (``tools/bench_accuracy.py``'s cached references, stop 48) by day 1.2-2.5 % (the full table 1.1-2.0 %),
+#: Earth sunsets 2.3-2.5 %, Mars 0.2 % / 5.0 %, the overcast 1 deg sun 8.0 %, the blue hour 13 % (5.5 %).
+PREVIEW_RESOLUTION = {"n_altitudes": 12, "n_cosines": 17}
+#: How many atmospheres' tables :func:`atmosphere_tables` keeps (its previews counted apart).
+TABLES_KEPT = 8
+_TABLES: collections.OrderedDict = collections.OrderedDict()
+_TABLES_LOCK = threading.Lock()
+
+
+def atmosphere_tables(atm: Atmosphere, ground_albedo: tuple[float, float, float] = DEFAULT_GROUND_ALBEDO, *,
+                      preview: bool = False) -> tuple[SunTransmittanceTable, MultipleScatteringTable]:
+    """The per-atmosphere tables (sun transmittance, multiple scattering), cached (the last :data:`TABLES_KEPT`):
+    they change with the atmosphere's parameters only, never with the sun or the camera. ``preview``: the
+    multiple-scattering table at :data:`PREVIEW_RESOLUTION`, for the interface's first look (kept apart: the
+    last two)."""
+    key = (atm, tuple(float(a) for a in ground_albedo), bool(preview))
+    with _TABLES_LOCK:
+        if key in _TABLES:
+            _TABLES.move_to_end(key)
+            return _TABLES[key]
     sun_table = SunTransmittanceTable(atm)
-    return sun_table, MultipleScatteringTable(atm, sun_table, ground_albedo)
+    tables = sun_table, MultipleScatteringTable(atm, sun_table, key[1], **(PREVIEW_RESOLUTION if preview else {}))
+    with _TABLES_LOCK:
+        _TABLES[key] = tables
+        for kept, limit in ((False, TABLES_KEPT), (True, 2)):
+            keys = [k for k in _TABLES if k[2] == kept]
+            for old in keys[:max(len(keys) - limit, 0)]:
+                del _TABLES[old]
+    return tables
+
+
+def tables_ready(atm: Atmosphere, ground_albedo: tuple[float, float, float] = DEFAULT_GROUND_ALBEDO) -> bool:
+    """True when :func:`atmosphere_tables` holds this atmosphere's full tables (a tile then costs only itself)."""
+    return (atm, tuple(float(a) for a in ground_albedo), False) in _TABLES
 
 
 @dataclass(frozen=True, eq=False)
@@ -1021,22 +1053,24 @@ TILE_CACHE_SIZE = 16
 
 def bake_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, *,
               multiple_scattering: bool = True, ground_albedo=DEFAULT_GROUND_ALBEDO,
-              shape: TableShape = DEFAULT_SHAPE, max_distance_m: float | None = None) -> Tile:
+              shape: TableShape = DEFAULT_SHAPE, max_distance_m: float | None = None, preview: bool = False) -> Tile:
     """One frame's table (module docstring) for a camera at ``camera_altitude_m`` (m above sea level, clamped at 0)
     and the sun at ``sun_elevation_rad``; ``multiple_scattering=False`` leaves J_ms out; ``max_distance_m``: the
     last column's distance D (default :func:`max_distance` of the camera; the key tiles of an animation share the
     largest, :func:`blend_tiles`). The last :data:`TILE_CACHE_SIZE` tiles are kept: the same inputs return the same
-    :class:`Tile`, its arrays read-only (:func:`integrate_tile` integrates afresh)."""
+    :class:`Tile`, its arrays read-only (:func:`integrate_tile` integrates afresh). ``preview``: from the preview
+    tables (:data:`PREVIEW_RESOLUTION`)."""
     return _cached_tile(atm, float(camera_altitude_m), float(sun_elevation_rad), bool(multiple_scattering),
                         tuple(float(a) for a in ground_albedo), shape,
-                        None if max_distance_m is None else float(max_distance_m))
+                        None if max_distance_m is None else float(max_distance_m), bool(preview))
 
 
 @functools.lru_cache(maxsize=TILE_CACHE_SIZE)
 def _cached_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, multiple_scattering: bool,
-                 ground_albedo: tuple[float, float, float], shape: TableShape, max_distance_m: float | None) -> Tile:
+                 ground_albedo: tuple[float, float, float], shape: TableShape, max_distance_m: float | None,
+                 preview: bool) -> Tile:
     tile = integrate_tile(atm, camera_altitude_m, sun_elevation_rad, multiple_scattering=multiple_scattering,
-                          ground_albedo=ground_albedo, shape=shape, max_distance_m=max_distance_m)
+                          ground_albedo=ground_albedo, shape=shape, max_distance_m=max_distance_m, preview=preview)
     for array in (tile.mean_extinction, tile.a_rayleigh, tile.a_mie, tile.sky_radiance,
                   tile.sky_ground_transmittance, tile.camera_sky_rayleigh, tile.camera_sky_mie):
         array.setflags(write=False)
@@ -1045,8 +1079,10 @@ def _cached_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: f
 
 def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, *,
                    multiple_scattering: bool = True, ground_albedo=DEFAULT_GROUND_ALBEDO,
-                   shape: TableShape = DEFAULT_SHAPE, max_distance_m: float | None = None) -> Tile:
-    """Integrate one frame's table (module docstring), uncached (:func:`bake_tile` keeps the last ones).
+                   shape: TableShape = DEFAULT_SHAPE, max_distance_m: float | None = None,
+                   preview: bool = False) -> Tile:
+    """Integrate one frame's table (module docstring), uncached (:func:`bake_tile` keeps the last ones); ``preview``
+    reads the preview tables (:func:`atmosphere_tables`).
 
     Each cell (target altitude h_p, azimuth a, distance d) is its own ray: the elevation follows from the
     triangle (r_c, r_p, d), sin e = (r_p^2 - r_c^2 - d^2) / (2 r_c d), clamped to a vertical ray where the
@@ -1056,7 +1092,7 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     2 cores; the same numbers to the bit).
     """
     h_c = max(float(camera_altitude_m), 0.0)
-    sun_table, ms_table = atmosphere_tables(atm, tuple(float(a) for a in ground_albedo))
+    sun_table, ms_table = atmosphere_tables(atm, tuple(float(a) for a in ground_albedo), preview=preview)
     d_max = max_distance(h_c, atm) if max_distance_m is None else float(max_distance_m)
     if not d_max > 0.0:
         raise ValueError(f"max_distance_m must be > 0; got {max_distance_m!r}")

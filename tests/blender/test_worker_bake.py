@@ -88,6 +88,60 @@ def test_the_worker_bakes_what_the_synchronous_bake_bakes(addon, monkeypatch):
     assert not precise_tables.pending()
 
 
+def test_an_atmosphere_edit_shows_the_preview_first_then_the_full_table(addon, monkeypatch):
+    """After an atmosphere edit the worker bakes the tile from the preview tables first (a quarter of the tables'
+    build), which is written at once, its key marked as a preview, and then the full tile over it: the synchronous
+    bake's to the bit. A sun move afterwards (the tables built) has no preview. Here the full bake waits until the
+    preview is written, so the test sees both."""
+    from atmos_addon.physics import precise
+
+    scene = _scene(addon)
+    release = threading.Event()
+    original = precise_tables._integrate
+    monkeypatch.setattr(precise_tables, "_integrate", lambda request: release.wait(60.0) and original(request))
+    with _handler_held():
+        scene.atmos.mie_scattering_per_km = tuple(v * 1.3 for v in scene.atmos.mie_scattering_per_km)
+    request = precise_tables._request(scene)
+    assert not precise.tables_ready(request.atmosphere, request.albedo)
+    try:
+        precise_tables.bake_on_worker(scene)
+        assert set(precise_tables._previews) == {scene.name}
+        precise_tables.wait_for_first_look()
+        assert _image()[precise_tables._KEY] == request.key + precise_tables.PREVIEW_MARK
+        assert precise_tables.pending() == [scene.name]       # the full bake still to come
+        assert precise_tables._current_image(request, scene) is None
+        preview = _pixels()
+    finally:
+        release.set()
+    precise_tables.wait_for_worker()
+    assert _image()[precise_tables._KEY] == request.key and not precise_tables._previews
+    full = _pixels()
+    assert not np.array_equal(full, preview)
+    relative = np.abs(preview - full) / np.maximum(np.abs(full), 1e-3 * np.abs(full).max())
+    assert np.median(relative) < 0.005 and np.percentile(relative, 99) < 0.1
+    precise_tables.bake(scene, force=True)
+    assert np.array_equal(_pixels(), full)
+    _move_sun(scene, 12.0)
+    precise_tables.bake_on_worker(scene)
+    assert not precise_tables._previews and precise_tables.pending() == [scene.name]
+    precise_tables.wait_for_worker()
+    assert _image()[precise_tables._KEY] == precise_tables._request(scene).key
+
+
+def test_a_save_while_the_preview_shows_stores_the_full_table(addon, tmp_path):
+    scene = _scene(addon)
+    with _handler_held():
+        scene.atmos.mie_scattering_per_km = tuple(v * 0.7 for v in scene.atmos.mie_scattering_per_km)
+    expected = precise_tables._request(scene).key
+    precise_tables.bake_on_worker(scene)
+    precise_tables.wait_for_first_look()
+    path = tmp_path / "preview.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    assert not precise_tables.pending() and _image()[precise_tables._KEY] == expected
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    assert _image()[precise_tables._KEY] == expected
+
+
 def test_a_change_while_the_worker_runs_bakes_the_latest_scene(addon, monkeypatch):
     """The sun moves again before the worker's tile is written: the table written is the last position's, never the
     one in between (an atmosphere edit meanwhile likewise: its key differs)."""

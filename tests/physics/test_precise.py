@@ -817,3 +817,28 @@ def test_log_linear_is_the_geometric_line_between_lit_nodes_and_the_straight_lin
     expected = np.where(positive, low * (np.where(positive, high, 1.0) / np.where(positive, low, 1.0)) ** fraction,
                         low + fraction * (high - low))
     assert np.array_equal(_log_linear(low, high, fraction), expected)
+
+
+def test_the_preview_tables_are_a_cheaper_table_close_to_the_full_one():
+    """The interface's first look after an atmosphere edit reads the preview tables (half the altitudes and sun
+    cosines): the clear preset's tile against the full tables' at a camera 30 m up, relative per texel, 99th
+    percentile (measured 1.3 % at a 30 deg sun, 7.3 % at 5 deg; median 0.0 %). They are kept apart from the full ones,
+    which alone make :func:`tables_ready` true."""
+    from atmos_addon.physics import precise
+
+    atm = Atmosphere(mie_scattering=Atmosphere().mie_scattering * 1.0137)   # an atmosphere no other test builds
+    assert not precise.tables_ready(atm)
+    _, preview = atmosphere_tables(atm, preview=True)
+    assert (preview.n_alt, preview.n_mu) == (12, 17) and not precise.tables_ready(atm)
+    for elevation, bound in ((30.0, 0.03), (5.0, 0.1)):
+        fast = bake_tile(atm, 30.0, math.radians(elevation), preview=True).pixels()
+        full = bake_tile(atm, 30.0, math.radians(elevation)).pixels()
+        relative = np.abs(fast - full) / np.maximum(np.abs(full), 1e-3 * np.abs(full).max())
+        assert np.percentile(relative, 99) < bound and np.median(relative) < 0.005, elevation
+        assert not np.array_equal(fast, full)
+    assert precise.tables_ready(atm)
+    _, table = atmosphere_tables(atm)
+    assert (table.n_alt, table.n_mu) == (24, 32) and atmosphere_tables(atm)[1] is table
+    for scale in (1.01, 1.02, 1.03):
+        atmosphere_tables(Atmosphere(mie_scattering=atm.mie_scattering * scale), preview=True)
+    assert sum(key[2] for key in precise._TABLES) == 2 and precise.tables_ready(atm)   # the previews kept apart

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from ...physics.precise import DEFAULT_SHAPE, Tile, bake_tile, key_tiles, shared_max_distance
+from ...physics.precise import DEFAULT_SHAPE, Tile, bake_tile, key_tiles, shared_max_distance, tables_ready
 from .. import facts, group_integrity, scene_reading
 from ..debounce import Debounced
 from . import compositor
@@ -198,8 +198,18 @@ def _request(scene) -> _Request:
 def _integrate(request: _Request) -> list[Tile]:
     """The request's key tiles (``physics.precise.bake_tile``: numpy alone, so it runs on a worker thread too; its
     cache keeps the last tiles, so a bake after the worker's reads them back)."""
+    return _tiles(request, preview=False)
+
+
+def _integrate_preview(request: _Request) -> list[Tile]:
+    """The request's key tiles from the preview tables (``physics.precise.PREVIEW_RESOLUTION``): the interface's
+    first look after an atmosphere edit, before the full tables are built (:func:`bake_on_worker`)."""
+    return _tiles(request, preview=True)
+
+
+def _tiles(request: _Request, *, preview: bool) -> list[Tile]:
     return [bake_tile(request.atmosphere, altitude, elevation, multiple_scattering=request.multiple,
-                      ground_albedo=request.albedo, max_distance_m=request.shared_distance_m)
+                      ground_albedo=request.albedo, max_distance_m=request.shared_distance_m, preview=preview)
             for altitude, elevation in request.path.keys]
 
 
@@ -221,8 +231,13 @@ def bake(scene, *, force: bool = False) -> int:
         _link_image(image)
         _revalidate_drivers(scene)
         return 0
-    key, inputs, path, atmosphere = request.key, request.inputs, request.path, request.atmosphere
-    tiles = _integrate(request)
+    return _write(scene, request, _integrate(request), request.key)
+
+
+def _write(scene, request: _Request, tiles: list[Tile], key: str) -> int:
+    """Write ``tiles`` (the request's, or its preview's) into the image under ``key``, and the scene's parameters;
+    returns the number of tiles."""
+    inputs, path, atmosphere = request.inputs, request.path, request.atmosphere
     image = write_tiles(tiles)
     image[_KEY] = key
     image[_LAYOUT_KEY] = _LAYOUT
@@ -336,7 +351,10 @@ def layout_stale() -> bool:
 def bake_on_worker(scene) -> None:
     """The debounced re-bake of a still scene in the UI: its tile is integrated on a worker thread (0.4-0.5 s, and
     the atmosphere's tables after an edit of it), so the interface never waits for it; :func:`write_finished` writes
-    the image on the main thread when it is ready."""
+    the image on the main thread when it is ready. After an atmosphere edit with multiple scattering (its full tables
+    not built yet: ``physics.precise.tables_ready``), the worker first bakes the tile from the preview tables
+    (a quarter of the full tables' build), which is written as soon as it is done (its key marked
+    :data:`PREVIEW_MARK`, so nothing takes it for the scene's table), then the full one, written over it."""
     if not uses_precise(scene) or moves(scene):
         return
     request = _request(scene)
@@ -347,6 +365,11 @@ def bake_on_worker(scene) -> None:
         if job[0].key == request.key:
             return                 # already on its way
         job[1].cancel()            # not started yet: dropped (a started one finishes; its tile is then unused)
+        preview = _previews.pop(scene.name, None)
+        if preview is not None:
+            preview[1].cancel()
+    if request.multiple and not tables_ready(request.atmosphere, request.albedo):
+        _previews[scene.name] = (request, _executor().submit(_integrate_preview, request))
     _jobs[scene.name] = (request, _executor().submit(_integrate, request))
     if not bpy.app.timers.is_registered(write_finished):
         bpy.app.timers.register(write_finished, first_interval=APPLY_POLL_S)
@@ -354,8 +377,12 @@ def bake_on_worker(scene) -> None:
 
 #: Seconds between the main thread's checks for a finished worker bake.
 APPLY_POLL_S = 0.05
+#: Appended to the image's bake key while it holds a preview (:func:`bake_on_worker`).
+PREVIEW_MARK = ":preview"
 #: Scene name -> (request, future) of the worker bakes under way.
 _jobs: dict[str, tuple[_Request, concurrent.futures.Future]] = {}
+#: Scene name -> (request, future) of their previews (the worker runs them first).
+_previews: dict[str, tuple[_Request, concurrent.futures.Future]] = {}
 _worker: list[concurrent.futures.ThreadPoolExecutor] = []
 
 
@@ -375,6 +402,20 @@ def write_finished():
     the next check after it does."""
     if bpy.app.is_job_running("RENDER"):
         return APPLY_POLL_S
+    for name, (request, future) in list(_previews.items()):
+        if not future.done():
+            continue
+        del _previews[name]
+        job = _jobs.get(name)
+        scene = bpy.data.scenes.get(name)
+        if (future.cancelled() or future.exception() is not None or job is None or job[0].key != request.key
+                or job[1].done() or scene is None or not uses_precise(scene) or moves(scene)
+                or _request(scene).key != request.key):
+            continue               # the full bake is done (or the preview's scene changed): nothing to show first
+        try:
+            _write(scene, request, future.result(), request.key + PREVIEW_MARK)
+        except Exception:
+            traceback.print_exc()
     for name, (request, future) in list(_jobs.items()):
         if not future.done():
             continue
@@ -389,7 +430,7 @@ def write_finished():
                 bake_on_worker(scene)
         except Exception:   # a timer that raises is unregistered: the other scenes' bakes would never be written
             traceback.print_exc()
-    return APPLY_POLL_S if _jobs else None
+    return APPLY_POLL_S if _jobs or _previews else None
 
 
 def wait_for_worker(timeout_s: float = 60.0, *, write: bool = True) -> bool:
@@ -403,9 +444,21 @@ def wait_for_worker(timeout_s: float = 60.0, *, write: bool = True) -> bool:
         concurrent.futures.wait([future for _, future in _jobs.values()], timeout=max(deadline - time.monotonic(), 0))
         if write_finished() is not None and all(future.done() for _, future in _jobs.values()):
             time.sleep(APPLY_POLL_S)   # a render holds the writes back
-    if not _jobs and bpy.app.timers.is_registered(write_finished):
-        bpy.app.timers.unregister(write_finished)
+    if not _jobs:
+        _previews.clear()          # what is left of them was skipped: their full bakes are written
+        if bpy.app.timers.is_registered(write_finished):
+            bpy.app.timers.unregister(write_finished)
     return not _jobs
+
+
+def wait_for_first_look(timeout_s: float = 60.0, *, write: bool = True) -> None:
+    """Block until the first bake of each scene the worker bakes is done (its preview, or with none its bake) and
+    (``write``) written, at most ``timeout_s`` (the bench's first-look row, tests)."""
+    firsts = {name: future for name, (_, future) in _jobs.items()}
+    firsts.update({name: future for name, (_, future) in _previews.items()})
+    concurrent.futures.wait(list(firsts.values()), timeout=timeout_s)
+    if write:
+        write_finished()
 
 
 def pending() -> list[str]:
@@ -427,9 +480,10 @@ def finish_pending() -> None:
 def cancel_pending() -> None:
     """Drop queued re-bakes, the worker's and their timers (unregister)."""
     _later.cancel()
-    for _, future in _jobs.values():
+    for _, future in list(_jobs.values()) + list(_previews.values()):
         future.cancel()
     _jobs.clear()
+    _previews.clear()
     if bpy.app.timers.is_registered(write_finished):
         bpy.app.timers.unregister(write_finished)
     if _worker:
