@@ -376,8 +376,8 @@ NOTES = """## What the numbers say
   properties (plus the world's sky values) and never touches a material. An edit of the air or the haze also remakes
   the E_sun table the sun's drivers read (`physics.sun.sun_irradiance_table`, 0.7 ms: its optical depths per unit
   coefficient are kept per geometry) and rewrites their keys: 4.6-5.5 ms a sync against 3.4-4.4 ms before the
-  drivers (5.2.3, interleaved A/B of `tools/bench_scale.py`, two runs each, stop 45); this run 4.26-4.81 ms (the
-  run before 4.35-5.11 ms, one row above 5 ms): the target is met within this machine's noise, not with a margin.
+  drivers (5.2.3, interleaved A/B of `tools/bench_scale.py`, two runs each, stop 45); this run 4.16-4.69 ms (the
+  runs before 4.26-4.81 ms and 4.35-5.11 ms, one row above 5 ms): the target is met within this machine's noise, not with a margin.
 - **Enable** is dominated by adding one group node per material. Per material two RNA edits remain,
   `nodes.new` and the `node.node_tree` write; every other access is a read (node locations and widths with
   one `foreach_get` each, the new location with one `foreach_set`, which skips the node-tree update). The material
@@ -395,8 +395,8 @@ NOTES = """## What the numbers say
 - **Per edit**: `tools/bench_node_edits.py` times the two edits against the file's size: `nodes.new` 26-27 us and
   the `node_tree` write 22 us in 4.5.15, 22 us and 19 us in 5.2.3 and 5.3.0, the same with 1000 and with 5000
   materials, so an enable grows linearly with the materials.
-- **The 1 s target**: 1.50-1.60 s in this run on the three versions (1.57-1.63 s in the run before, the same code
-  in the enable: building the scene, not Atmos, took 5.9-6.7 s against 6.4-6.9 s), on an Intel Xeon where the
+- **The 1 s target**: 1.54-1.58 s in this run on the three versions (1.50-1.60 s and 1.57-1.63 s in the runs
+  before, the same code in the enable: building the scene, not Atmos, took 6.5-8.4 s against 5.9-6.9 s), on an Intel Xeon where the
   runs before stop 45 had an AMD EPYC (1.01-1.11 s; the same code, interleaved on this machine, 1.53-1.59 s; building
   the scene 4.9-5.0 s there). Since Precise with multiple scattering became the default (December 2026) it was
   5.0-6.4 s, then
@@ -421,20 +421,30 @@ NOTES = """## What the numbers say
   or render whatever Atmos does (2.41 s on 5.2.3, `tools/measure_scene_tags.py`, below); the scale script
   evaluates it untimed before the sun-move rows, so since this run Refresh's row (0.5-0.7 s, 2.0-2.9 s before) no
   longer holds it. A preset load changes the atmosphere and so re-bakes the tables instead of the 20 ms target:
-  1.60-1.92 s (1.40-1.65 s in the run before, 2.46-2.72 s before that: the tables below). The sun table's grids are
-  kept when only coefficients change; the tables 1.07-1.11 s on 2 cores (`tools/bench_tables.py`, above; 0.88-0.96 s
+  1.55-1.85 s (1.60-1.92 s and 1.40-1.65 s in the runs before, 2.46-2.72 s before that: the tables below). The sun table's grids are
+  kept when only coefficients change; the tables 0.97-1.02 s on 2 cores (`tools/bench_tables.py`, above; 1.07-1.11 s in the run before; 0.88-0.96 s
   before stop 47's second order by direction, which took the Martian sunset from 18.7 % to 6.0 %), 1.85-1.97 s
   before the multiple-scattering table's 24 altitudes and 16 steps, about 4 s before its orders were solved by GMRES
   and its altitudes built on threads; the tile 0.40-0.46 s (0.47-0.51 s before the lookups below, 0.75 s before the
   threads). In the interface the panel's preset menu goes through the same worker thread as any edit (below).
-- **An atmosphere edit** re-bakes the per-atmosphere tables and the tile: 1.39 s in the background (the still
-  valley above; 1.35 s in the run before, before stop 47's second order by direction, 2.66 s before that), so the
-  1 s target is not met on this 2-core machine. In the interface the
+- **An atmosphere edit** re-bakes the per-atmosphere tables and the tile: 1.42 s in the background (the still
+  valley above; 1.39 s and 1.35 s in the runs before, before stop 47's second order by direction, 2.66 s before that),
+  so the 1 s target is not met there on this 2-core machine. In the interface the
   bake runs on a worker thread (`blender/apply/precise_tables.py`, `bake_on_worker`, stop 46): the main thread's
-  part of an edit (its sync, the hand-over to the worker 0.3 s after the last change, the image written when the
-  worker is done) is 6 ms, and the sky and haze catch up 1.4 s later (`tools/bench_animation.py`'s UI rows; the
+  part of an edit (its sync, the hand-over to the worker 0.3 s after the last change, the images written when the
+  worker is done) is 9 ms. Since stop 48 the worker first bakes the tile from preview tables
+  (`physics.precise.PREVIEW_RESOLUTION`: the multiple-scattering table at 12 altitudes and 17 sun cosines, a fifth
+  of its build) and writes it at once, its key marked as a preview, then bakes the full tables and writes their tile
+  over it: the sky and haze show the edit 0.66 s after the hand-over (the first-look row; 1.4 s before), and the full
+  table follows, 2.0 s after it (the preview's 0.6 s comes first on the same worker). The preview against the full
+  tables, per texel of the tile (clear preset, camera 30 m up; `tests/physics/test_precise.py`): 99th percentile
+  1.3 % at a 30 deg sun and 7.3 % at 5 deg, median 0.0 %; against the complete reference by day 1.1-2.5 % (the full
+  table's 1.1-2.0 %), the overcast 1 deg sun 8 % and the blue hour 13 % (2.4 % and 5.5 %). A save first finishes the
+  full bake, so a farm never renders a preview; a sun move (the tables built) has none
+  (`tools/bench_animation.py`'s UI rows; the
   `bpy` module has no event loop, so the rows call the timers' work themselves: `tests/blender/test_worker_bake.py`
-  proves the worker writes the synchronous bake's table to the bit, and that a save first finishes it). What went:
+  proves the worker writes the synchronous bake's table to the bit, the preview first when it has one, and that a
+  save first finishes it). What went:
   the multiple-scattering table at 24 altitudes and 16 steps instead of 32 and 24 (the tables 1.85-1.97 s ->
   0.88-0.96 s; the accuracy bench moved the day cases by at most 0.1 point, the sunsets, Mars and the blue hour by at
   most 0.12, the overcast 1 deg sun from 5.7 % to 4.5 %: docs/quality.md), and in the tile the table lookups by
@@ -477,11 +487,11 @@ NOTES = """## What the numbers say
   strength, are drivers on the lamp (`blender/apply/sun_drivers.py`, docs/sky_and_sun.md): Blender evaluates them in
   the depsgraph update of the move itself, and what Atmos still writes on a move (the sun's status and the ground
   sunlight the panel shows) goes in as ID properties, which tag nothing. A sun turned in azimuth (no table depends
-  on it) costs a depsgraph update of 85-95 ms with 20000 objects against 73-86 ms for Blender alone, Atmos's
+  on it) costs a depsgraph update of 83-94 ms with 20000 objects against 71-83 ms for Blender alone, Atmos's
   handler about 10 ms of it (the rows above); turned in elevation it also re-bakes the Precise tile, at once in the
   background (0.68-0.79 s the move, tile included, against 1.20-1.29 s before the drivers: 5.2.3, interleaved A/B,
   two runs each), 0.3 s after the last move in the interface, on a worker thread since stop 46 (the still valley's
-  elevation move: 6 ms on the main thread, the worker's tile 0.37 s; `tools/bench_animation.py`, above). Before,
+  elevation move: 6 ms on the main thread, the worker's tile 0.36 s; `tools/bench_animation.py`, above). Before,
   each move's sync wrote the shader parameters
   and tagged the scene, and a tagged scene re-evaluates every object;
   `.venv/bpy-5.2.3/bin/python tools/measure_scene_tags.py` measured what each tag costs (5000 materials, 20000

@@ -353,7 +353,7 @@ def bake_on_worker(scene) -> None:
     the atmosphere's tables after an edit of it), so the interface never waits for it; :func:`write_finished` writes
     the image on the main thread when it is ready. After an atmosphere edit with multiple scattering (its full tables
     not built yet: ``physics.precise.tables_ready``), the worker first bakes the tile from the preview tables
-    (a quarter of the full tables' build), which is written as soon as it is done (its key marked
+    (a fifth of the full tables' build), which is written as soon as it is done (its key marked
     :data:`PREVIEW_MARK`, so nothing takes it for the scene's table), then the full one, written over it."""
     if not uses_precise(scene) or moves(scene):
         return
