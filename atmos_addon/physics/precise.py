@@ -496,12 +496,12 @@ class SunCosineNodes:
     falls by orders of magnitude within a few degrees of sun below the horizon and changes fastest there, so the
     nodes crowd at mu_s = 0 (0.2, 0.9, 2.0, 3.6, 5.6 deg ... with n = 16). Above that band (23 deg with n = 16) K
     cells even in the sun's elevation up to the zenith; below it one cell to the nadir, where no light is left (the
-    clear sky's mean radiance at 23 deg below is under 1e-7 of its most on the ground, 2e-4 at 100 km; Mars's 2e-4 at
-    100 km). Until stop 48 the whole range was mu_s = sign(u) u^2 with u even in -1 .. 1: its last cell ran from a
-    sun 61.5 deg up to the zenith, where the view's azimuth from the sun means nothing, so a sun 80 deg up read a
-    horizontal view 88 % from the zenith node, which holds no difference between toward and away from the sun:
-    Mars at noon was 1.05x too bright away from the sun and 0.96x toward it (4.8 % against the complete reference at
-    64 000 paths; 0.3 % with these nodes).
+    clear sky's mean radiance with the sun 23 deg below is 1e-10 of its most at that altitude on the ground and 4e-7
+    at 100 km; Mars's 4e-6 on the ground, 3e-3 at 100 km, where its air is thinnest). Until stop 48 the whole range
+    was mu_s = sign(u) u^2 with u even in -1 .. 1: its last cell ran from a sun 61.5 deg up to the zenith, where the
+    view's azimuth from the sun means nothing, so a sun 80 deg up read a horizontal view 88 % from the zenith node,
+    which holds no difference between toward and away from the sun: Mars at noon was 1.05x too bright away from the
+    sun and 0.96x toward it (4.8 % against the complete reference at 64 000 paths; 0.3 % with these nodes).
 
     Between two nodes a cosine's fractional index is linear in the sun's elevation (in sqrt|mu_s| until stop 48:
     the same nodes read so gave the overcast 1 deg sun 3.8 % instead of 2.4 %, the Martian sunset 6.0 % instead of

@@ -408,13 +408,13 @@ def write_finished():
         del _previews[name]
         job = _jobs.get(name)
         scene = bpy.data.scenes.get(name)
-        if (future.cancelled() or future.exception() is not None or job is None or job[0].key != request.key
-                or job[1].done() or scene is None or not uses_precise(scene) or moves(scene)
-                or _request(scene).key != request.key):
-            continue               # the full bake is done (or the preview's scene changed): nothing to show first
         try:
+            if (future.cancelled() or future.exception() is not None or job is None or job[0].key != request.key
+                    or job[1].done() or scene is None or not uses_precise(scene) or moves(scene)
+                    or _request(scene).key != request.key):
+                continue           # the full bake is done (or the preview's scene changed): nothing to show first
             _write(scene, request, future.result(), request.key + PREVIEW_MARK)
-        except Exception:
+        except Exception:          # as below: the timer must go on
             traceback.print_exc()
     for name, (request, future) in list(_jobs.items()):
         if not future.done():
