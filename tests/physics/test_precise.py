@@ -126,7 +126,7 @@ def test_the_tables_built_on_threads_are_those_of_one_thread(monkeypatch):
     def build(workers: int):
         monkeypatch.setattr(precise, "WORKERS", workers)
         ms = MultipleScatteringTable(atm, SunTransmittanceTable(atm), n_altitudes=12, n_cosines=17)
-        monkeypatch.setattr(precise, "atmosphere_tables", lambda *args: (ms._sun_table, ms))
+        monkeypatch.setattr(precise, "atmosphere_tables", lambda *args, **kwargs: (ms._sun_table, ms))
         tile = precise.integrate_tile(atm, 500.0, math.radians(3.0), shape=shape)
         return ms, tile
 
