@@ -372,12 +372,12 @@ BSDF), a camera and a sun lamp. The sync rows time {repeats} writes of `scene.at
 
 NOTES = """## What the numbers say
 
-- **Parameter changes** cost the same with 10 or 5000 materials: a sync writes seven scene custom
-  properties (plus the world's sky values) and never touches a material. An edit of the air or the haze also remakes
-  the E_sun table the sun's drivers read (`physics.sun.sun_irradiance_table`, 0.7 ms: its optical depths per unit
-  coefficient are kept per geometry) and rewrites their keys: 4.6-5.5 ms a sync against 3.4-4.4 ms before the
-  drivers (5.2.3, interleaved A/B of `tools/bench_scale.py`, two runs each, stop 45); this run 4.16-4.69 ms (the
-  runs before 4.26-4.81 ms and 4.35-5.11 ms, one row above 5 ms): the target is met within this machine's noise, not with a margin.
+- **Parameter changes** cost the same with 10 or 5000 materials: a sync writes seven scene custom properties (plus the
+  world's sky values) and never touches a material. An edit of the air or the haze also remakes the E_sun table the
+  sun's drivers read (`physics.sun.sun_irradiance_table`, 0.7 ms: its optical depths per unit coefficient are kept per
+  geometry) and rewrites their keys: 4.6-5.5 ms a sync against 3.4-4.4 ms before the drivers (5.2.3, interleaved A/B
+  of `tools/bench_scale.py`, two runs each, stop 45); this run 4.16-4.69 ms (the runs before 4.26-4.81 ms and
+  4.35-5.11 ms, one row above 5 ms): the target is met within this machine's noise, not with a margin.
 - **Enable** is dominated by adding one group node per material. Per material two RNA edits remain,
   `nodes.new` and the `node.node_tree` write; every other access is a read (node locations and widths with
   one `foreach_get` each, the new location with one `foreach_set`, which skips the node-tree update). The material
@@ -395,38 +395,37 @@ NOTES = """## What the numbers say
 - **Per edit**: `tools/bench_node_edits.py` times the two edits against the file's size: `nodes.new` 26-27 us and
   the `node_tree` write 22 us in 4.5.15, 22 us and 19 us in 5.2.3 and 5.3.0, the same with 1000 and with 5000
   materials, so an enable grows linearly with the materials.
-- **The 1 s target**: 1.54-1.58 s in this run on the three versions (1.50-1.60 s and 1.57-1.63 s in the runs
-  before, the same code in the enable: building the scene, not Atmos, took 6.5-8.4 s against 5.9-6.9 s), on an Intel Xeon where the
-  runs before stop 45 had an AMD EPYC (1.01-1.11 s; the same code, interleaved on this machine, 1.53-1.59 s; building
-  the scene 4.9-5.0 s there). Since Precise with multiple scattering became the default (December 2026) it was
-  5.0-6.4 s, then
-  1.2-1.4 s before the Per Pixel default, 1.5-2.1 s with it. That mode builds its compositor group, which was
-  written one Math node per channel (396 nodes at Precise, 0.45-0.91 s) and is now one Vector Math node per colour
-  operation, as the shader groups are (220 nodes, 0.13-0.27 s; `tools/bench_group_builds.py`, 5.2.3): every node
-  and link Blender adds re-runs the tree's update over the nodes already there (a node 0.07 ms into a 100-node
-  tree, 0.33 ms into 400, 3.6 ms into 1600), so a build costs the square of its size. What is left (cProfile,
-  `.venv/bpy-5.2.3/bin/python tools/bench_scale.py --profile`, 1.12 s): the material pass 0.80 s (Blender's two
-  edits per material about 0.35 s, the one attach 0.15 s, the rest Python reading each material's outputs and
-  alpha), the Per Pixel, sky and camera sky groups 0.30 s. Skipping a node property write that would not change
-  the value (each write re-runs the tree's update) took 8 % off the group builds (an interleaved A/B of six builds).
-  Earlier, a cProfile of enable on 5.2.3 (the same command) showed 3.0 s in `enable_effect`'s own calls into
-  Blender: the depsgraph update that reads the camera's matrix, which re-evaluated every object because the
-  scene's properties had just been written, and in it the depsgraph handler's bake, whose link of the table image
-  into the aerial group was cheap only because no material used the group yet. Updating first moved the 3 s to
-  that link (pointing a group that 5000 materials use at a new image re-evaluates all of them). Now the update
-  comes before the first write (it evaluates only what a script moved), the tables are baked before the materials
-  (the groups link the image as they are built) and a table that needs more key tiles grows its image in place
-  (`image.scale`), so its nodes never need re-pointing: the material pass (0.9-1.0 s then) was what was left. The first
-  depsgraph evaluation after an enable (2.7 s then: every edited material) is Blender's, paid by the next redraw
-  or render whatever Atmos does (2.41 s on 5.2.3, `tools/measure_scene_tags.py`, below); the scale script
-  evaluates it untimed before the sun-move rows, so since this run Refresh's row (0.5-0.7 s, 2.0-2.9 s before) no
-  longer holds it. A preset load changes the atmosphere and so re-bakes the tables instead of the 20 ms target:
-  1.55-1.85 s (1.60-1.92 s and 1.40-1.65 s in the runs before, 2.46-2.72 s before that: the tables below). The sun table's grids are
-  kept when only coefficients change; the tables 0.97-1.02 s on 2 cores (`tools/bench_tables.py`, above; 1.07-1.11 s in the run before; 0.88-0.96 s
-  before stop 47's second order by direction, which took the Martian sunset from 18.7 % to 6.0 %), 1.85-1.97 s
-  before the multiple-scattering table's 24 altitudes and 16 steps, about 4 s before its orders were solved by GMRES
-  and its altitudes built on threads; the tile 0.40-0.46 s (0.47-0.51 s before the lookups below, 0.75 s before the
-  threads). In the interface the panel's preset menu goes through the same worker thread as any edit (below).
+- **The 1 s target**: 1.54-1.58 s in this run on the three versions (1.50-1.60 s and 1.57-1.63 s in the runs before,
+  the same code in the enable: building the scene, not Atmos, took 6.5-8.4 s against 5.9-6.9 s), on an Intel Xeon
+  where the runs before stop 45 had an AMD EPYC (1.01-1.11 s; the same code, interleaved on this machine, 1.53-1.59 s;
+  building the scene 4.9-5.0 s there). Since Precise with multiple scattering became the default (December 2026) it
+  was 5.0-6.4 s, then 1.2-1.4 s before the Per Pixel default, 1.5-2.1 s with it. That mode builds its compositor
+  group, which was written one Math node per channel (396 nodes at Precise, 0.45-0.91 s) and is now one Vector Math
+  node per colour operation, as the shader groups are (220 nodes, 0.13-0.27 s; `tools/bench_group_builds.py`, 5.2.3):
+  every node and link Blender adds re-runs the tree's update over the nodes already there (a node 0.07 ms into a
+  100-node tree, 0.33 ms into 400, 3.6 ms into 1600), so a build costs the square of its size. What is left (cProfile,
+  `.venv/bpy-5.2.3/bin/python tools/bench_scale.py --profile`, 1.12 s): the material pass 0.80 s (Blender's two edits
+  per material about 0.35 s, the one attach 0.15 s, the rest Python reading each material's outputs and alpha), the
+  Per Pixel, sky and camera sky groups 0.30 s. Skipping a node property write that would not change the value (each
+  write re-runs the tree's update) took 8 % off the group builds (an interleaved A/B of six builds). Earlier, a
+  cProfile of enable on 5.2.3 (the same command) showed 3.0 s in `enable_effect`'s own calls into Blender: the
+  depsgraph update that reads the camera's matrix, which re-evaluated every object because the scene's properties had
+  just been written, and in it the depsgraph handler's bake, whose link of the table image into the aerial group was
+  cheap only because no material used the group yet. Updating first moved the 3 s to that link (pointing a group that
+  5000 materials use at a new image re-evaluates all of them). Now the update comes before the first write (it
+  evaluates only what a script moved), the tables are baked before the materials (the groups link the image as they
+  are built) and a table that needs more key tiles grows its image in place (`image.scale`), so its nodes never need
+  re-pointing: the material pass (0.9-1.0 s then) was what was left. The first depsgraph evaluation after an enable
+  (2.7 s then: every edited material) is Blender's, paid by the next redraw or render whatever Atmos does (2.41 s on
+  5.2.3, `tools/measure_scene_tags.py`, below); the scale script evaluates it untimed before the sun-move rows, so
+  since this run Refresh's row (0.5-0.7 s, 2.0-2.9 s before) no longer holds it. A preset load changes the atmosphere
+  and so re-bakes the tables instead of the 20 ms target: 1.55-1.85 s (1.60-1.92 s and 1.40-1.65 s in the runs before,
+  2.46-2.72 s before that: the tables below). The sun table's grids are kept when only coefficients change; the tables
+  0.97-1.02 s on 2 cores (`tools/bench_tables.py`, above; 1.07-1.11 s in the run before; 0.88-0.96 s before stop 47's
+  second order by direction, which took the Martian sunset from 18.7 % to 6.0 %), 1.85-1.97 s before the
+  multiple-scattering table's 24 altitudes and 16 steps, about 4 s before its orders were solved by GMRES and its
+  altitudes built on threads; the tile 0.40-0.46 s (0.47-0.51 s before the lookups below, 0.75 s before the threads).
+  In the interface the panel's preset menu goes through the same worker thread as any edit (below).
 - **An atmosphere edit** re-bakes the per-atmosphere tables and the tile: 1.42 s in the background (the still
   valley above; 1.39 s and 1.35 s in the runs before, before stop 47's second order by direction, 2.66 s before that),
   so the 1 s target is not met there on this 2-core machine. In the interface the

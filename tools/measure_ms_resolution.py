@@ -44,7 +44,7 @@ def luminances(keywords: dict[str, int]) -> tuple[dict[str, np.ndarray], float]:
     """Each case's pixel luminance with a table of ``keywords``, and the table's median build time."""
     cache, builds = {}, []
 
-    def tables(atm, ground_albedo=precise.DEFAULT_GROUND_ALBEDO):
+    def tables(atm, ground_albedo=precise.DEFAULT_GROUND_ALBEDO, preview=False):   # the variant, preview or not
         key = (atm, tuple(ground_albedo))
         if key not in cache:
             sun = precise.SunTransmittanceTable(atm)

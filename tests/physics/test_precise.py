@@ -822,8 +822,8 @@ def test_log_linear_is_the_geometric_line_between_lit_nodes_and_the_straight_lin
 def test_the_preview_tables_are_a_cheaper_table_close_to_the_full_one():
     """The interface's first look after an atmosphere edit reads the preview tables (half the altitudes and sun
     cosines): a clear atmosphere's tile against the full tables' at a camera 30 m up, relative per texel, 99th
-    percentile (measured 1.2 % at a 30 deg sun, 6.1 % at 5 deg; median under 0.02 %). They are kept apart from the full ones,
-    which alone make :func:`tables_ready` true."""
+    percentile (measured 1.2 % at a 30 deg sun, 6.1 % at 5 deg; median under 0.02 %). They are kept apart from the
+    full ones, which alone make :func:`tables_ready` true."""
     from atmos_addon.physics import precise
 
     atm = Atmosphere(mie_scattering=Atmosphere().mie_scattering * 1.0137)   # an atmosphere no other test builds
