@@ -523,7 +523,8 @@ class SunCosineNodes:
     def cosines(self) -> np.ndarray:
         """mu_s of the nodes, ascending, from -1 to 1: 1 + K + 1 + K + K of them."""
         n, k = self._layout
-        band = (np.arange(-k, k + 1) / n) ** 2 * np.sign(np.arange(-k, k + 1))
+        steps = np.arange(-k, k + 1)
+        band = np.sign(steps) * (steps / n) ** 2
         edge = math.asin(band[-1])
         day = np.sin(np.linspace(edge, 0.5 * np.pi, k + 1)[1:])
         result = np.concatenate([[-1.0], band, day])
@@ -669,7 +670,7 @@ class MultipleScatteringTable:
         self._albedo = np.asarray(ground_albedo, dtype=np.float64)
         self._sun_table = sun_table
         self._mu_s = self._sun_nodes.cosines  # crowded at the terminator (mu_s = 0), where the light changes fastest
-        n_cosines = self.n_mu
+        n_cosines = self.n_mu                 # from here the nodes' count (32 for the resolution 33)
         if n_azimuth % 2:
             raise ValueError(f"n_azimuth must be even (the directions pair up about the sun's plane), not {n_azimuth}")
         self._dirs, solid_angle = _direction_grid(n_zenith, n_azimuth)              # (D, 3), (D,)
@@ -969,8 +970,9 @@ class MultipleScatteringTable:
 #: full table 1.1-2.0 %), Earth sunsets 2.3-2.5 %, Mars 0.2 % / 5.0 %, the overcast 1 deg sun 8.0 %, the blue hour
 #: 13 % (5.5 %).
 PREVIEW_RESOLUTION = {"n_altitudes": 12, "n_cosines": 17}
-#: How many atmospheres' tables :func:`atmosphere_tables` keeps (its previews counted apart).
+#: How many atmospheres' tables :func:`atmosphere_tables` keeps, and apart from them how many previews.
 TABLES_KEPT = 8
+PREVIEWS_KEPT = 2
 _TABLES: collections.OrderedDict = collections.OrderedDict()
 _TABLES_LOCK = threading.Lock()
 
@@ -980,7 +982,7 @@ def atmosphere_tables(atm: Atmosphere, ground_albedo: tuple[float, float, float]
     """The per-atmosphere tables (sun transmittance, multiple scattering), cached (the last :data:`TABLES_KEPT`):
     they change with the atmosphere's parameters only, never with the sun or the camera. ``preview``: the
     multiple-scattering table at :data:`PREVIEW_RESOLUTION`, for the interface's first look (kept apart: the
-    last two)."""
+    last :data:`PREVIEWS_KEPT`)."""
     key = (atm, tuple(float(a) for a in ground_albedo), bool(preview))
     with _TABLES_LOCK:
         if key in _TABLES:
@@ -990,7 +992,7 @@ def atmosphere_tables(atm: Atmosphere, ground_albedo: tuple[float, float, float]
     tables = sun_table, MultipleScatteringTable(atm, sun_table, key[1], **(PREVIEW_RESOLUTION if preview else {}))
     with _TABLES_LOCK:
         _TABLES[key] = tables
-        for kept, limit in ((False, TABLES_KEPT), (True, 2)):
+        for kept, limit in ((False, TABLES_KEPT), (True, PREVIEWS_KEPT)):
             keys = [k for k in _TABLES if k[2] == kept]
             for old in keys[:max(len(keys) - limit, 0)]:
                 del _TABLES[old]

@@ -355,7 +355,7 @@ def bake_on_worker(scene) -> None:
     not built yet: ``physics.precise.tables_ready``), the worker first bakes the tile from the preview tables
     (a fifth of the full tables' build), which is written as soon as it is done (its key marked
     :data:`PREVIEW_MARK`, so nothing takes it for the scene's table), then the full one, written over it."""
-    if not uses_precise(scene) or moves(scene):
+    if not _bakes_still(scene):
         return
     request = _request(scene)
     if _current_image(request, scene) is not None:
@@ -402,26 +402,17 @@ def write_finished():
     the next check after it does."""
     if bpy.app.is_job_running("RENDER"):
         return APPLY_POLL_S
-    for name, (request, future) in list(_previews.items()):
-        if not future.done():
-            continue
-        del _previews[name]
+    for name, request, future, scene in _take_finished(_previews):
         job = _jobs.get(name)
-        scene = bpy.data.scenes.get(name)
         try:
-            if (future.cancelled() or future.exception() is not None or job is None or job[0].key != request.key
-                    or job[1].done() or scene is None or not uses_precise(scene) or moves(scene)
-                    or _request(scene).key != request.key):
+            if (future.cancelled() or future.exception() is not None or scene is None or job is None
+                    or job[0].key != request.key or job[1].done() or _request(scene).key != request.key):
                 continue           # the full bake is done (or the preview's scene changed): nothing to show first
             _write(scene, request, future.result(), request.key + PREVIEW_MARK)
         except Exception:          # as below: the timer must go on
             traceback.print_exc()
-    for name, (request, future) in list(_jobs.items()):
-        if not future.done():
-            continue
-        del _jobs[name]
-        scene = bpy.data.scenes.get(name)
-        if future.cancelled() or scene is None or not uses_precise(scene) or moves(scene):
+    for _, request, future, scene in _take_finished(_jobs):
+        if future.cancelled() or scene is None:
             continue
         try:
             if future.exception() is not None or _request(scene).key == request.key:
@@ -431,6 +422,23 @@ def write_finished():
         except Exception:   # a timer that raises is unregistered: the other scenes' bakes would never be written
             traceback.print_exc()
     return APPLY_POLL_S if _jobs or _previews else None
+
+
+def _bakes_still(scene) -> bool:
+    """True when the scene's table is Precise's and one tile (nothing moves): what the worker bakes."""
+    return uses_precise(scene) and not moves(scene)
+
+
+def _take_finished(jobs: dict[str, tuple[_Request, concurrent.futures.Future]]) -> list[tuple]:
+    """Take the finished entries out of ``jobs``: (scene name, request, future, scene), the scene None where it is
+    gone or no longer baked on the worker (:func:`_bakes_still`), so there is nothing to write for it."""
+    finished = []
+    for name, (request, future) in list(jobs.items()):
+        if future.done():
+            del jobs[name]
+            scene = bpy.data.scenes.get(name)
+            finished.append((name, request, future, scene if scene is not None and _bakes_still(scene) else None))
+    return finished
 
 
 def wait_for_worker(timeout_s: float = 60.0, *, write: bool = True) -> bool:
