@@ -484,24 +484,38 @@ def solve_orders(transport: np.ndarray, source: np.ndarray, *, tolerance: float 
 
 
 #: The sun cosines beyond which the multiple-scattering table's nodes leave the terminator's spacing, as a share of
-#: its resolution: with 33 (16 cells a side) the nodes run mu_s = +-(k / 16)^2 up to k = 10, +-0.39 (23 deg).
+#: its resolution: with 33 (16 cells a side of the former layout) K = 10 nodes a side up to 23 deg.
 TERMINATOR_SHARE = 0.625
+#: How fast the band's cells grow away from the horizon: the k-th node of K lies at
+#: band (exp(a k / K) - 1) / (exp(a) - 1), each cell exp(a / K) times the one before (1.22x with K = 10).
+TERMINATOR_GROWTH = 2.0
 
 
 @dataclass(frozen=True)
 class SunCosineNodes:
     """The sun zenith cosines of the multiple-scattering table's nodes, and where a cosine falls between them.
 
-    Around the terminator mu_s = +-(k / n)^2 (k = 0 .. K, n = (``resolution`` - 1) / 2, K = 0.625 n): the light
-    falls by orders of magnitude within a few degrees of sun below the horizon and changes fastest there, so the
-    nodes crowd at mu_s = 0 (0.2, 0.9, 2.0, 3.6, 5.6 deg ... with n = 16). Above that band (23 deg with n = 16) K
-    cells even in the sun's elevation up to the zenith; below it one cell to the nadir, where no light is left (the
-    clear sky's mean radiance with the sun 23 deg below is 1e-10 of its most at that altitude on the ground and 4e-7
-    at 100 km; Mars's 4e-6 on the ground, 3e-3 at 100 km, where its air is thinnest). Until stop 48 the whole range
-    was mu_s = sign(u) u^2 with u even in -1 .. 1: its last cell ran from a sun 61.5 deg up to the zenith, where the
-    view's azimuth from the sun means nothing, so a sun 80 deg up read a horizontal view 88 % from the zenith node,
-    which holds no difference between toward and away from the sun: Mars at noon was 1.05x too bright away from the
-    sun and 0.96x toward it (4.8 % against the complete reference at 64 000 paths; 0.3 % with these nodes).
+    Around the terminator, K = 0.625 n nodes a side (n = (``resolution`` - 1) / 2) whose elevations grow
+    geometrically from the horizon to +-23 deg (mu_s = +-(K / n)^2): e_k = 23 deg (exp(a k / K) - 1) /
+    (exp(a) - 1) with a = :data:`TERMINATOR_GROWTH`, 0.8, 1.8, 3.0, 4.4, 6.2, 8.3, 11.0, 14.2, 18.1, 23.0 deg with
+    n = 16 (the light falls by orders of magnitude within a few degrees of sun below the horizon and changes fastest
+    there). Above that band K cells even in the sun's elevation up to the zenith (6.7 deg with n = 16); below it one
+    cell to the nadir, where no light is left (the clear sky's mean radiance with the sun 23 deg below is 1e-10 of its
+    most at that altitude on the ground and 4e-7 at 100 km; Mars's 4e-6 on the ground, 3e-3 at 100 km, where its air
+    is thinnest). With half the resolution (17: the first look's tables) the nodes are every other one of these.
+
+    Until stop 49 the band was mu_s = +-(k / n)^2 (0.2, 0.9, 2.0, 3.6, 5.6, 8.1 ... deg): crowded within a degree
+    of the horizon, 2 deg cells where the blue hour lies. Against the same table at resolution 129, over suns 9 deg
+    below the horizon to the zenith (``luminance`` of what a camera 2 m up sees at 1 km, 30 km and of the sky, 5 view
+    elevations x 3 azimuths), its interpolation was off by up to 9.1 / 11.7 / 3.1 / 11.3 % (clear, overcast, Mars,
+    sunset presets) with the sun 1-6 deg down, where these nodes give 5.5 / 7.0 / 2.7 / 6.7 %; from 1 deg down to
+    3 deg up 1.6 / 1.7 / 0.7 / 2.1 % -> 1.1 / 0.9 / 0.4 / 1.2 %; 3-30 deg 1.5 / 1.5 / 1.1 / 1.8 % -> 0.8 / 1.4 / 0.9
+    / 1.0 %; the day's cells are the same. Against the complete reference the blue hour went 5.3 -> 3.8 %.
+    Before stop 48 the whole range was mu_s = sign(u) u^2 with u even in -1 .. 1: its last cell ran from a sun 61.5
+    deg up to the zenith, where the view's azimuth from the sun means nothing, so a sun 80 deg up read a horizontal
+    view 88 % from the zenith node, which holds no difference between toward and away from the sun: Mars at noon was
+    1.05x too bright away from the sun and 0.96x toward it (4.8 % against the complete reference at 64 000 paths;
+    0.3 % with even day cells).
 
     Between two nodes a cosine's fractional index is linear in the sun's elevation (in sqrt|mu_s| until stop 48:
     the same nodes read so gave the overcast 1 deg sun 3.8 % instead of 2.4 %, the Martian sunset 6.0 % instead of
@@ -523,11 +537,12 @@ class SunCosineNodes:
     def cosines(self) -> np.ndarray:
         """mu_s of the nodes, ascending, from -1 to 1: 1 + K + 1 + K + K of them."""
         n, k = self._layout
-        steps = np.arange(-k, k + 1)
-        band = np.sign(steps) * (steps / n) ** 2
-        edge = math.asin(band[-1])
-        day = np.sin(np.linspace(edge, 0.5 * np.pi, k + 1)[1:])
-        result = np.concatenate([[-1.0], band, day])
+        edge = math.asin((k / n) ** 2)    # 23.0 deg: where the former layout's band ended (the same day cells)
+        side = edge * np.expm1(TERMINATOR_GROWTH * np.arange(1, k + 1) / k) / math.expm1(TERMINATOR_GROWTH)
+        elevations = np.concatenate([[-0.5 * np.pi], -side[::-1], [0.0], side,
+                                     np.linspace(edge, 0.5 * np.pi, k + 1)[1:]])
+        result = np.sin(elevations)
+        result[k + 1] = 0.0
         result.flags.writeable = False
         return result
 

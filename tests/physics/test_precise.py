@@ -519,17 +519,22 @@ def test_a_high_sun_keeps_the_difference_between_toward_and_away():
 
 
 def test_the_sun_cosine_nodes_crowd_at_the_terminator_and_span_the_day_evenly():
-    """The nodes: mu_s = 0 one of them, +-(k / 16)^2 up to +-0.39 (23 deg), even in elevation above, one cell below;
-    each node reads as its own index, an index grows with the cosine and is linear in the elevation within a cell."""
+    """The nodes: mu_s = 0 one of them, 10 a side whose elevations grow geometrically (each cell 1.22x the one before)
+    up to +-0.39 (23 deg), even in elevation above, one cell below; each node reads as its own index, an index grows
+    with the cosine and is linear in the elevation within a cell; half the resolution keeps every other node."""
     from atmos_addon.physics.precise import SunCosineNodes
 
     nodes = SunCosineNodes(33)
     degrees = np.degrees(nodes.elevations)
     assert len(nodes) == 32 and nodes.cosines[0] == -1.0 and nodes.cosines[-1] == pytest.approx(1.0)
-    np.testing.assert_allclose(nodes.cosines[1:22], np.sign(np.arange(-10, 11)) * (np.arange(-10, 11) / 16) ** 2)
+    assert nodes.cosines[11] == 0.0 and nodes.cosines[21] == pytest.approx((10 / 16) ** 2)
+    np.testing.assert_allclose(nodes.cosines[1:22], -nodes.cosines[21:0:-1], atol=1e-15)       # symmetric band
+    cells = np.diff(degrees[11:22])
+    np.testing.assert_allclose(cells[1:] / cells[:-1], math.exp(0.2))                         # geometric growth
+    assert 0.7 < cells[0] < 0.9 and np.diff(degrees[5:12]).max() < 2.2   # 0.8 deg at 0, 2.2 at 8 deg down
     np.testing.assert_allclose(np.diff(degrees[21:]), (90.0 - degrees[21]) / 10)          # 6.7 deg cells by day
-    assert np.diff(degrees[1:22]).max() < 4.6 and np.diff(degrees[9:14]).max() < 1.0         # 0.2-0.9 deg at 0
     np.testing.assert_allclose(nodes.index(nodes.cosines), np.arange(len(nodes)), atol=1e-12)
+    np.testing.assert_allclose(SunCosineNodes(17).cosines, nodes.cosines[[0, *range(1, 32, 2)]], atol=1e-12)
     elevation = np.linspace(-0.5 * np.pi, 0.5 * np.pi, 20_001)
     index = nodes.index(np.sin(elevation))
     assert np.all(np.diff(index) >= 0.0)
@@ -709,7 +714,8 @@ def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
     suns 4-8 deg down, within 1 % from 2 deg down up; 0.96-1.06 since the table scatters the first order once
     more by direction, stop 47, its points read linearly between the nodes: 1.06 at 8 deg down, 0.96-1.03 at 4 and
     6); since stop 48's nodes, both tables read linearly in the sun's elevation between nodes: 1.02-1.075 at 8 deg
-    down, 1.00-1.05 at 4 and 6, 0.984-1.008 from 2 deg down up). Linearly, the same 33 nodes made it up to 1.31x too
+    down, 1.00-1.05 at 4 and 6, 0.984-1.008 from 2 deg down up; with stop 49's geometric cells 1.008-1.066 at 8 deg
+    down, 0.980-1.037 at 4 and 6, 0.988-1.010 from 2 deg down up). Linearly, the same 33 nodes made it up to 1.31x too
     bright at 4-8 deg down (the twilight sky away from the sun +27 % and +50 % against the spectral reference at -4 and
     -6 deg); 1.19x since the table carries the light's first moment (December 2026)."""
     from atmos_addon.physics import precise
@@ -731,7 +737,7 @@ def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
                 ).reshape(altitude.shape)
 
     log_linear = ratio()
-    assert np.all(np.abs(log_linear - 1.0) < 0.085), (log_linear.min(), log_linear.max())
+    assert np.all(np.abs(log_linear - 1.0) < 0.075), (log_linear.min(), log_linear.max())
     assert np.all(np.abs(log_linear[:, 3:] - 1.0) < 0.02)   # from 2 deg down to the day
     monkeypatch.setattr(precise, "_log_linear", lambda low, high, fraction: low + fraction * (high - low))
     assert ratio()[:, :3].max() > 1.12   # the straight line, which the test would catch
