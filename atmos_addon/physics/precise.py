@@ -660,6 +660,11 @@ class MultipleScatteringTable:
       64 000 paths before), and against 96 000 paths the overcast 2.4 %, the blue hour 5.5 % (xy 0.0099), Mars sunset
       5.5 % (xy 0.0101); the blue hour and the overcast each have one ray-channel of 36 and 48 beyond three
       standard errors of the reference (5 and 9 before).
+    * With the terminator's cells growing geometrically (stop 49, :class:`SunCosineNodes`; the same 32 nodes and
+      build time, the day's nodes unchanged): against 192 000 paths (two seeds) the blue hour 3.8 % (xy 0.0093;
+      5.3 % and 0.0092 before), the Martian sunset 5.6 % (xy 0.0097; 5.75 %); against 96 000 paths the overcast
+      2.6 % (2.4 %: its 1 deg sun sat by a node, 0.9 deg, that the new nodes, 0.8 and 1.8 deg, moved away from;
+      over every sun the new nodes' interpolation is the closer, :class:`SunCosineNodes`).
 
     The directions, steps and view grid were chosen by the bench (more directions change no day case by over 0.5 %
     and the low suns by a few %); 24 altitudes and 16 steps since stop 46 (32 and 24 before: twice the build, the
@@ -776,7 +781,8 @@ class MultipleScatteringTable:
             mu = rays.sun_cosine
             up = np.broadcast_to(rays.view_up[None], mu.shape)
             # linear between the sun-cosine nodes (log-linearly the blue hour was 7.4 % off against 5.3 %, the
-            # Martian sunset 5.7 % against 6.0 %: 96 000 reference paths)
+            # Martian sunset 5.7 % against 6.0 %: 96 000 reference paths; with stop 49's nodes and 192 000 paths
+            # 3.8 % and xy 0.0102 against 3.8 % and 0.0093, 5.4 % against 5.6 %, the overcast 3.1 % against 2.6 %)
             s_r, s_m = self._lookup(first_rows, np.broadcast_to(rays.altitude_m, mu.shape), mu, up, rays.toward_sun,
                                     log_linear=False)
             second[j] = np.sum(rays.step_rayleigh[None] * s_r + rays.step_mie[None] * s_m, axis=2)
@@ -981,9 +987,10 @@ class MultipleScatteringTable:
 #: The multiple-scattering table of the first look after an atmosphere edit in the interface
 #: (``blender/apply/precise_tables.py``, :func:`atmosphere_tables` with ``preview=True``): half the altitudes and
 #: sun cosines, about a fifth of the build (0.29 s against 1.52 s on 2 cores); the full table follows on the same
-#: worker. Against the complete reference (``tools/bench_accuracy.py``'s references, stop 48) by day 1.1-2.5 % (the
-#: full table 1.1-2.0 %), Earth sunsets 2.3-2.5 %, Mars 0.2 % / 5.0 %, the overcast 1 deg sun 8.0 %, the blue hour
-#: 13 % (5.5 %).
+#: worker; its sun-cosine nodes are every other one of the full table's. Against the complete reference
+#: (``tools/bench_accuracy.py``'s references, stop 49) by day 1.1-2.1 % (the full table 1.1-2.0 %), Earth sunsets
+#: 1.9 % / 2.5 %, Mars 0.2 % / 6.4 %, the overcast 1 deg sun 8.2 %, the blue hour 6.5 % (3.8 %; 13 % with stop 48's
+#: nodes).
 PREVIEW_RESOLUTION = {"n_altitudes": 12, "n_cosines": 17}
 #: How many atmospheres' tables :func:`atmosphere_tables` keeps, and apart from them how many previews.
 TABLES_KEPT = 8
