@@ -437,9 +437,10 @@ NOTES = """## What the numbers say
   over it: the sky and haze show the edit 0.66 s after the hand-over (the first-look row; 1.4 s before), and the full
   table follows, 2.0 s after it (the preview's 0.6 s comes first on the same worker). The preview against the full
   tables, per texel of the tile (clear preset, camera 30 m up; `tests/physics/test_precise.py`): 99th percentile
-  1.3 % at a 30 deg sun and 7.3 % at 5 deg, median 0.0 %; against the complete reference by day 1.1-2.5 % (the full
-  table's 1.1-2.0 %), the overcast 1 deg sun 8 % and the blue hour 13 % (2.4 % and 5.5 %). A save first finishes the
-  full bake, so a farm never renders a preview; a sun move (the tables built) has none
+  1.2 % at a 30 deg sun and 2.2 % at 5 deg (7.3 % before stop 49's sun-cosine nodes, of which the preview's are
+  every other one), median 0.0 %; against the complete reference by day 1.1-2.1 % (the full table's 1.1-2.0 %), the
+  overcast 1 deg sun 8 % and the blue hour 6.5 % (13 % before; the full table 2.6 % and 3.8 %). A save first
+  finishes the full bake, so a farm never renders a preview; a sun move (the tables built) has none
   (`tools/bench_animation.py`'s UI rows; the
   `bpy` module has no event loop, so the rows call the timers' work themselves: `tests/blender/test_worker_bake.py`
   proves the worker writes the synchronous bake's table to the bit, the preview first when it has one, and that a

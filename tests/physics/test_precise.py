@@ -828,15 +828,16 @@ def test_log_linear_is_the_geometric_line_between_lit_nodes_and_the_straight_lin
 def test_the_preview_tables_are_a_cheaper_table_close_to_the_full_one():
     """The interface's first look after an atmosphere edit reads the preview tables (half the altitudes and sun
     cosines): a clear atmosphere's tile against the full tables' at a camera 30 m up, relative per texel, 99th
-    percentile (measured 1.2 % at a 30 deg sun, 6.1 % at 5 deg; median under 0.02 %). They are kept apart from the
-    full ones, which alone make :func:`tables_ready` true."""
+    percentile (measured 1.2 % at a 30 deg sun, 2.2 % at 5 deg since the preview's sun-cosine nodes are every other
+    one of the full table's, stop 49, 6.1 % before; median under 0.02 %). They are kept apart from the full ones,
+    which alone make :func:`tables_ready` true."""
     from atmos_addon.physics import precise
 
     atm = Atmosphere(mie_scattering=Atmosphere().mie_scattering * 1.0137)   # an atmosphere no other test builds
     assert not precise.tables_ready(atm)
     _, preview = atmosphere_tables(atm, preview=True)
     assert (preview.n_alt, preview.n_mu) == (12, 17) and not precise.tables_ready(atm)
-    for elevation, bound in ((30.0, 0.03), (5.0, 0.1)):
+    for elevation, bound in ((30.0, 0.03), (5.0, 0.04)):
         fast = bake_tile(atm, 30.0, math.radians(elevation), preview=True).pixels()
         full = bake_tile(atm, 30.0, math.radians(elevation)).pixels()
         relative = np.abs(fast - full) / np.maximum(np.abs(full), 1e-3 * np.abs(full).max())
