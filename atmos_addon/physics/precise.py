@@ -506,11 +506,12 @@ class SunCosineNodes:
 
     Until stop 49 the band was mu_s = +-(k / n)^2 (0.2, 0.9, 2.0, 3.6, 5.6, 8.1 ... deg): crowded within a degree
     of the horizon, 2 deg cells where the blue hour lies. Against the same table at resolution 129, over suns 9 deg
-    below the horizon to the zenith (``luminance`` of what a camera 2 m up sees at 1 km, 30 km and of the sky, 5 view
-    elevations x 3 azimuths), its interpolation was off by up to 9.1 / 11.7 / 3.1 / 11.3 % (clear, overcast, Mars,
-    sunset presets) with the sun 1-6 deg down, where these nodes give 5.5 / 7.0 / 2.7 / 6.7 %; from 1 deg down to
-    3 deg up 1.6 / 1.7 / 0.7 / 2.1 % -> 1.1 / 0.9 / 0.4 / 1.2 %; 3-30 deg 1.5 / 1.5 / 1.1 / 1.8 % -> 0.8 / 1.4 / 0.9
-    / 1.0 %; the day's cells are the same. Against the complete reference the blue hour went 5.3 -> 3.8 %.
+    below the horizon to the zenith (the luminance of what a camera 2 m up sees at 1 km, 30 km and of the sky, 5 view
+    elevations x 3 azimuths; ``tools/measure_sun_nodes.py``), its interpolation was off by up to 9.5 / 12.2 / 3.2 /
+    11.7 % (clear, overcast, Mars, sunset presets) with the sun 1-6 deg down, where these nodes give 5.8 / 7.4 / 2.8
+    / 7.1 %; from 1 deg down to 3 deg up 1.6 / 1.6 / 0.6 / 2.0 % -> 1.2 / 1.0 / 0.4 / 1.3 %; 3-30 deg 1.5 / 1.6 /
+    1.1 / 1.9 % -> 0.8 / 1.4 / 0.9 / 1.1 %; 6-9 deg down 17 / 39 / 7.4 / 20 % -> 13 / 27 / 6.0 / 16 %; the day's
+    cells are the same. Against the complete reference the blue hour went 5.3 -> 3.8 %.
     Before stop 48 the whole range was mu_s = sign(u) u^2 with u even in -1 .. 1: its last cell ran from a sun 61.5
     deg up to the zenith, where the view's azimuth from the sun means nothing, so a sun 80 deg up read a horizontal
     view 88 % from the zenith node, which holds no difference between toward and away from the sun: Mars at noon was
