@@ -5,7 +5,7 @@ and how far the default level's pixel luminance moves on every accuracy-bench ca
     .venv/bpy-5.2.3/bin/python tools/measure_ms_resolution.py [--variants "alt32=n_altitudes:32;steps12=n_steps:12"]
 
 A variant is ``name=keyword:value,keyword:value`` of :class:`atmos_addon.physics.precise.MultipleScatteringTable`;
-the tiles are integrated afresh with each variant's table (``precise.atmosphere_tables`` swapped for the run) and
+the tiles are integrated afresh with each variant's table (``precise.integrate_tile``'s ``tables``) and
 evaluated on the cases' rays. Prints the build time (median over the cases' atmospheres, this machine's threads) and
 the largest relative change of luminance per case, %. Not a test: a lead for the atmosphere-edit target.
 """
@@ -44,26 +44,21 @@ def luminances(keywords: dict[str, int]) -> tuple[dict[str, np.ndarray], float]:
     """Each case's pixel luminance with a table of ``keywords``, and the table's median build time."""
     cache, builds = {}, []
 
-    def tables(atm, ground_albedo=precise.DEFAULT_GROUND_ALBEDO, preview=False):   # the variant, preview or not
-        key = (atm, tuple(ground_albedo))
-        if key not in cache:
+    def tables(atm):
+        if atm not in cache:
             sun = precise.SunTransmittanceTable(atm)
             start = time.perf_counter()
-            cache[key] = (sun, precise.MultipleScatteringTable(atm, sun, ground_albedo, **keywords))
+            cache[atm] = (sun, precise.MultipleScatteringTable(atm, sun, precise.DEFAULT_GROUND_ALBEDO, **keywords))
             builds.append(time.perf_counter() - start)
-        return cache[key]
+        return cache[atm]
 
-    original = precise.atmosphere_tables
-    precise.atmosphere_tables = tables
-    try:
-        result = {}
-        for case in BENCH_CASES + COMPLETE_ONLY_CASES:
-            tile = precise.integrate_tile(case.atmosphere, case.camera_altitude_m, np.radians(case.sun_elevation_deg))
-            f_ex, l_in = precise.evaluate(tile, case.view_dirs, case.sun_dir, case.distances_m, case.atmosphere,
-                                          np.float64)
-            result[case.name] = ((case.surface_radiance * f_ex + l_in) @ LINEAR_REC709_TO_XYZ.T)[:, 1]
-    finally:
-        precise.atmosphere_tables = original
+    result = {}
+    for case in BENCH_CASES + COMPLETE_ONLY_CASES:
+        tile = precise.integrate_tile(case.atmosphere, case.camera_altitude_m, np.radians(case.sun_elevation_deg),
+                                      tables=tables(case.atmosphere))
+        f_ex, l_in = precise.evaluate(tile, case.view_dirs, case.sun_dir, case.distances_m, case.atmosphere,
+                                      np.float64)
+        result[case.name] = ((case.surface_radiance * f_ex + l_in) @ LINEAR_REC709_TO_XYZ.T)[:, 1]
     return result, statistics.median(builds)
 
 

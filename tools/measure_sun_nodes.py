@@ -56,23 +56,17 @@ def atmosphere(name: str) -> Atmosphere:
     return Atmosphere(ozone_column_du=DEFAULT_OZONE_COLUMN_DU) if name == "clear" else presets.load(name).atmosphere
 
 
-def luminances(atm: Atmosphere, nodes_class, n_cosines: int) -> np.ndarray:
-    """(elevations, views): Y of L_in with the multiple-scattering table built on ``nodes_class``."""
-    saved_class, saved_tables = precise.SunCosineNodes, precise.atmosphere_tables
-    precise.SunCosineNodes = nodes_class
-    try:
-        sun = precise.SunTransmittanceTable(atm)
-        table = precise.MultipleScatteringTable(atm, sun, precise.DEFAULT_GROUND_ALBEDO, n_cosines=n_cosines)
-        precise.atmosphere_tables = lambda *args, **kwargs: (sun, table)
-        rows = []
-        for elevation in ELEVATIONS_DEG:
-            case = BenchCase("sweep", "", "clear", 2.0, float(elevation), VIEWS)
-            tile = precise.integrate_tile(atm, 2.0, math.radians(elevation))
-            _, l_in = precise.evaluate(tile, case.view_dirs, case.sun_dir, case.distances_m, atm, np.float64)
-            rows.append(l_in @ LUMINANCE)
-        return np.array(rows)
-    finally:
-        precise.SunCosineNodes, precise.atmosphere_tables = saved_class, saved_tables
+def luminances(atm: Atmosphere, sun_nodes: precise.SunCosineNodes) -> np.ndarray:
+    """(elevations, views): Y of L_in with the multiple-scattering table built on ``sun_nodes``."""
+    sun = precise.SunTransmittanceTable(atm)
+    tables = (sun, precise.MultipleScatteringTable(atm, sun, precise.DEFAULT_GROUND_ALBEDO, sun_nodes=sun_nodes))
+    rows = []
+    for elevation in ELEVATIONS_DEG:
+        case = BenchCase("sweep", "", "clear", 2.0, float(elevation), VIEWS)
+        tile = precise.integrate_tile(atm, 2.0, math.radians(elevation), tables=tables)
+        _, l_in = precise.evaluate(tile, case.view_dirs, case.sun_dir, case.distances_m, atm, np.float64)
+        rows.append(l_in @ LUMINANCE)
+    return np.array(rows)
 
 
 def main() -> int:
@@ -80,15 +74,15 @@ def main() -> int:
     parser.add_argument("--fine", type=int, default=129, help="sun-cosine resolution of the yardstick table (odd)")
     parser.add_argument("--presets", default="clear,overcast,mars,sunset")
     args = parser.parse_args()
-    layouts = (("former (k / 16)^2", FormerNodes), ("current", precise.SunCosineNodes))
+    layouts = (("former (k / 16)^2", FormerNodes(33)), ("current", precise.SunCosineNodes(33)))
     bands = " | ".join(f"{low:g} to {min(high, 90.0):g} deg" for low, high in BANDS_DEG)
     print(f"| preset | layout | {bands} |\n|---|---|" + "---:|" * len(BANDS_DEG))
     for name in args.presets.split(","):
         atm = atmosphere(name)
-        fine = luminances(atm, precise.SunCosineNodes, args.fine)
+        fine = luminances(atm, precise.SunCosineNodes(args.fine))
         visible = fine > 1e-12 * fine.max()
-        for label, nodes_class in layouts:
-            error = np.where(visible, np.abs(luminances(atm, nodes_class, 33) / np.where(visible, fine, 1.0) - 1.0),
+        for label, nodes in layouts:
+            error = np.where(visible, np.abs(luminances(atm, nodes) / np.where(visible, fine, 1.0) - 1.0),
                              0.0).max(axis=1)
             cells = [f"{100.0 * error[(ELEVATIONS_DEG >= low) & (ELEVATIONS_DEG < high)].max():.1f}"
                      for low, high in BANDS_DEG]

@@ -543,7 +543,6 @@ class SunCosineNodes:
         elevations = np.concatenate([[-0.5 * np.pi], -side[::-1], [0.0], side,
                                      np.linspace(edge, 0.5 * np.pi, k + 1)[1:]])
         result = np.sin(elevations)
-        result[k + 1] = 0.0
         result.flags.writeable = False
         return result
 
@@ -683,9 +682,11 @@ class MultipleScatteringTable:
 
     def __init__(self, atm: Atmosphere, sun_table: SunTransmittanceTable, ground_albedo=DEFAULT_GROUND_ALBEDO,
                  n_altitudes: int = 24, n_cosines: int = 33, n_zenith: int = 6, n_azimuth: int = 16, n_steps: int = 16,
-                 n_view_cosines: int = 17, n_view_azimuths: int = 9) -> None:
+                 n_view_cosines: int = 17, n_view_azimuths: int = 9,
+                 sun_nodes: SunCosineNodes | None = None) -> None:
         self.atm = atm
-        self._sun_nodes = SunCosineNodes(n_cosines)
+        # ``sun_nodes``: another layout of the sun cosines (``tools/measure_sun_nodes.py``); ``n_cosines`` unused then
+        self._sun_nodes = SunCosineNodes(n_cosines) if sun_nodes is None else sun_nodes
         self.n_alt, self.n_mu = n_altitudes, len(self._sun_nodes)
         self.n_view_z, self.n_view_a = n_view_cosines, n_view_azimuths
         self._albedo = np.asarray(ground_albedo, dtype=np.float64)
@@ -1106,9 +1107,10 @@ def _cached_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: f
 def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, *,
                    multiple_scattering: bool = True, ground_albedo=DEFAULT_GROUND_ALBEDO,
                    shape: TableShape = DEFAULT_SHAPE, max_distance_m: float | None = None,
-                   preview: bool = False) -> Tile:
+                   preview: bool = False, tables: tuple | None = None) -> Tile:
     """Integrate one frame's table (module docstring), uncached (:func:`bake_tile` keeps the last ones); ``preview``
-    reads the preview tables (:func:`atmosphere_tables`).
+    reads the preview tables (:func:`atmosphere_tables`); ``tables``: the (sun transmittance, multiple-scattering)
+    tables to read instead (the tools that measure variants of them).
 
     Each cell (target altitude h_p, azimuth a, distance d) is its own ray: the elevation follows from the
     triangle (r_c, r_p, d), sin e = (r_p^2 - r_c^2 - d^2) / (2 r_c d), clamped to a vertical ray where the
@@ -1118,7 +1120,8 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     2 cores; the same numbers to the bit).
     """
     h_c = max(float(camera_altitude_m), 0.0)
-    sun_table, ms_table = atmosphere_tables(atm, tuple(float(a) for a in ground_albedo), preview=preview)
+    sun_table, ms_table = (atmosphere_tables(atm, tuple(float(a) for a in ground_albedo), preview=preview)
+                           if tables is None else tables)
     d_max = max_distance(h_c, atm) if max_distance_m is None else float(max_distance_m)
     if not d_max > 0.0:
         raise ValueError(f"max_distance_m must be > 0; got {max_distance_m!r}")
