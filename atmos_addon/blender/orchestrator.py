@@ -142,7 +142,7 @@ def material_group(scene):
     built = aerial.describe_features(features)
     if plan.mode == "PER_PIXEL":
         per_pixel = compositor.ensure_per_pixel_group(features)
-        built = f"{built.split(':')[0]}, per pixel: {len(per_pixel.nodes)} compositor nodes"
+        built = f"{built.split(':')[0]}, per pixel: {groups.parts.inline_count(per_pixel)} compositor nodes"
     scene_reading.set_if_changed(scene.atmos, "status_built", built)
     return group
 

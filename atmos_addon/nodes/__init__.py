@@ -7,7 +7,9 @@ Chapman shape, the table shape) are imported from it: one source. Modules: :mod:
 arithmetic as nodes), :mod:`.parameters` (the property names and their writer), :mod:`.aerial_perspective` (the
 "Atmos Aerial Perspective" group, Hoffman & Preetham 2002 eq. 19), :mod:`.dome` (the virtual sky dome both
 groups share), :mod:`.sky` (the "Atmos Sky" world group), :mod:`.sky_lighting` (the same sky from a table, for
-the rays that light the scene), :mod:`.sky_view` (the Precise sky for Cycles' camera rays above the horizon).
+the rays that light the scene), :mod:`.sky_view` (the Precise sky for Cycles' camera rays above the horizon),
+:mod:`.parts` (pieces of those equations built once as groups of their own and instanced where used, so that every
+tree stays small: Blender's build cost grows with the square of a tree's size).
 """
 
 from .aerial_perspective import (GROUP_NAME, OUTPUT_INSCATTERING, OUTPUT_TRANSMITTANCE, build_aerial_perspective,
@@ -21,7 +23,7 @@ from .sky import OUTPUT_RADIANCE, SKY_GROUP_NAME, SKY_NODE_COUNTS, SkyFeatures, 
 from . import sky_lighting  # noqa: F401  (atmos_addon.nodes.sky_lighting: the world's table sky for non-camera rays)
 from . import sky_view  # noqa: F401  (atmos_addon.nodes.sky_view: the Precise sky for camera rays, two lookups)
 from . import per_pixel  # noqa: F401  (atmos_addon.nodes.per_pixel: the Fast level evaluated per pixel in the compositor)
-from . import composite, registry, stamps, surface  # noqa: F401  (the compositor and material groups, the registry)
+from . import composite, parts, registry, stamps, surface  # noqa: F401  (compositor, material groups, parts, registry)
 
 __all__ = [
     "AERIAL_PARAMETER_NAMES",

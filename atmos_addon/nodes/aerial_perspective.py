@@ -44,7 +44,7 @@ import bpy
 import numpy as np
 
 from .dome import cos_theta_to_sun, dome_distances, sun_direction, view_direction
-from . import stamps
+from . import parts, stamps
 from .graph import ArrayBuilder, GraphBuilder
 from .precise import precise_terms
 from .terms import HG_DENOMINATOR_FLOOR, LEVELS, AerialFeatures, distance_m, scattering_terms  # noqa: F401
@@ -147,8 +147,9 @@ def ensure_aerial_perspective_group(features: AerialFeatures = AerialFeatures(),
 
 
 def node_count(tree: bpy.types.NodeTree) -> int:
-    """Number of nodes in ``tree`` (the group output included)."""
-    return len(tree.nodes)
+    """Number of nodes ``tree`` evaluates (the group output included), its parts' counted as if inlined
+    (:func:`.parts.inline_count`)."""
+    return parts.inline_count(tree)
 
 
 def describe_features(features: AerialFeatures) -> str:

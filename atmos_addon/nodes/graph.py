@@ -19,6 +19,8 @@ from typing import Union
 import bpy
 import numpy as np
 
+from . import parts
+
 Socket = bpy.types.NodeSocket
 #: An operand: a node output socket, a number, or three numbers (a vector/colour constant).
 Operand = Union[Socket, float, int, Sequence[float]]
@@ -99,6 +101,27 @@ class GraphBuilder:
             b = b if _is_vector(b) or isinstance(b, bpy.types.NodeSocket) else (b, b, b)
             return self._vector_math(operation, a, b, label=label)
         return self._math(operation, a, b, label=label)
+
+    def call(self, part: parts.Part, *operands: Operand, label: str = ""):
+        """``part``'s output (a tuple of them with several) for ``operands``, its inputs in order: one node instancing
+        the part's group, which is built the first time (:mod:`.parts`)."""
+        tree_type = self.tree.bl_idname
+        group = parts.ensure(part, tree_type, self.child)
+        node = self.node(parts.GROUP_NODES[tree_type], label=label)
+        node.node_tree = group
+        names = [name for name, _, _ in parts.interface(part, tree_type)[len(part.outputs):]]
+        for name, value in zip(names, list(operands) + self._part_parameters(part)):
+            self._feed(node, node.inputs[name], value)
+        outputs = tuple(node.outputs[name] for name, _ in part.outputs)
+        return outputs if len(outputs) > 1 else outputs[0]
+
+    @classmethod
+    def child(cls, tree: bpy.types.NodeTree, parameters: Mapping[str, Operand]) -> "GraphBuilder":
+        """A builder of this kind for a part's group ``tree`` (a shader part reads its parameters itself)."""
+        return cls(tree)
+
+    def _part_parameters(self, part: parts.Part) -> list:
+        return []
 
     # -- arithmetic ---------------------------------------------------------------------------------
 
@@ -376,7 +399,8 @@ class CompositorBuilder(GraphBuilder):
     three copies of one scalar are that scalar (a link into a vector input broadcasts it), and a vector is separated
     once however often the equations ask. Every node added or linked re-runs Blender's update of the whole tree, so
     the build costs the square of the node count: 220 nodes at Precise, built in 0.13-0.27 s, where one Math node per
-    channel took 396 nodes and 0.91 s (Blender 5.2.3, ``tools/bench_group_builds.py``).
+    channel took 396 nodes and 0.91 s; with its parts (:meth:`call`, :mod:`.parts`: their parameters are inputs of
+    their groups, see :meth:`child`) 110 nodes of its own, 0.05 s (Blender 5.2.3, ``tools/bench_group_builds.py``).
     """
 
     def __init__(self, tree: bpy.types.NodeTree, parameters: dict[str, Operand]) -> None:
@@ -453,6 +477,14 @@ class CompositorBuilder(GraphBuilder):
                 del self._depth[node.name]
                 self.tree.nodes.remove(node)
             removed += len(dead)
+
+    @classmethod
+    def child(cls, tree: bpy.types.NodeTree, parameters: Mapping[str, Operand]) -> "CompositorBuilder":
+        """A compositor builder for a part's group ``tree``, its parameters the group's inputs."""
+        return cls(tree, dict(parameters))
+
+    def _part_parameters(self, part: parts.Part) -> list:
+        return [self.parameters[name] for name, _ in part.parameters]
 
     def shading_input(self, name: str, *, label: str = ""):
         raise TypeError(f"a compositor graph has no shading point ({name!r}): its inputs are the group's")
@@ -630,6 +662,10 @@ class ArrayBuilder(GraphBuilder):
             parts = np.broadcast_arrays(*(np.asarray(v, dtype=np.float32) for v in value))
             return np.stack(parts, axis=-1)
         return np.asarray(value, dtype=np.float32)
+
+    def call(self, part: parts.Part, *operands: Operand, label: str = ""):
+        """``part``'s equations evaluated in place on the arrays (a part is a node group only in Blender)."""
+        return part.build(self, *operands)
 
     def node(self, bl_idname: str, *, label: str = "", depth: int | None = None, **properties):
         raise TypeError(f"the numpy builder evaluates equations and builds no node ({bl_idname}, {label!r})")

@@ -33,7 +33,7 @@ import bpy
 
 from ..physics.aerial_perspective import SMALL_OPTICAL_DEPTH
 from ..physics.precise import DEFAULT_SHAPE
-from . import parameters
+from . import parameters, parts
 from .dome import cos_theta_to_sun, sun_direction
 from .graph import GraphBuilder, Socket
 from .terms import phase_henyey_greenstein, phase_rayleigh
@@ -65,6 +65,11 @@ def _lerp(g: GraphBuilder, low: Socket, high: Socket, fraction: Socket, label: s
 
 
 def phi1_exact(g: GraphBuilder, x: Socket, exp_minus_x: Socket) -> Socket:
+    """phi1(x) per component (:func:`phi1_graph`), one instance of its part."""
+    return g.call(PHI1, x, exp_minus_x, label="phi1(tau)")
+
+
+def phi1_graph(g: GraphBuilder, x: Socket, exp_minus_x: Socket) -> Socket:
     """phi1(x) = (1 - exp(-x)) / x per component, the series 1 - x/2 + x^2/6 below 1e-3 (x >= 0), picked exactly:
     m quotient + (1 - m) series with m 0 or 1 and the series taken at min(x, 1e-3). (A blend
     series + m (quotient - series) cancels once x^2/6 dwarfs the quotient: optical depths of thousands, which the
@@ -78,13 +83,18 @@ def phi1_exact(g: GraphBuilder, x: Socket, exp_minus_x: Socket) -> Socket:
     return g.multiply_add(large, quotient, g.mul(g.sub((1.0, 1.0, 1.0), large), series), label="phi1(tau)")
 
 
+PHI1 = parts.define("Atmos phi1", 1, (("x", parts.VECTOR), ("exp(-x)", parts.VECTOR)), (("phi1", parts.VECTOR),),
+                    phi1_graph, description="phi1(x) = (1 - exp(-x)) / x per channel, its series below 1e-3")
+
+
 class _Bilinear:
     """Bilinear samples of the image at (x + col, row) for integer x offsets: the four texels around it fetched
     unfiltered and blended here. (A filtered texture lookup would do the same in Cycles, but Eevee filters with
     mipmaps chosen from screen-space derivatives, which the slice jumps of the atlas coordinates make huge.)
     The fractions are shared by every block: their offsets are whole texels. With ``whole_row`` the row is a whole
     number (the sky's rays end on the top row or the ground's): one row, two texels per sample. With ``blend``
-    (:func:`key_blend`) every texel is its key tile's blended with the next key tile's, one tile height up."""
+    (:func:`key_blend`) every texel is its key tile's blended with the next key tile's, one tile height up. Each
+    sample is one instance of a table-sample part (:data:`TABLE_SAMPLES`, :func:`table_sample`)."""
 
     def __init__(self, g: GraphBuilder, x0: Socket, y0: Socket, column: Socket, row: Socket, width: Socket,
                  height: Socket, whole_row: bool = False, blend: "KeyBlend | None" = None) -> None:
@@ -100,20 +110,53 @@ class _Bilinear:
         self.step_u = g.div(1.0, width, label="1 / W")
         self.blend = blend
         self.v_next = None if blend is None else tuple(g.add(v, blend.step_v, label="v (next key)") for v in self.v)
-
-    def _texel(self, u: Socket, index: int, label: str) -> Socket:
-        texel = _texel(self.g, u, self.v[index], label)
-        if self.blend is None:
-            return texel
-        return self.blend.mix(texel, _texel(self.g, u, self.v_next[index], f"{label}, next key"), label)
+        self.part = TABLE_SAMPLES[len(self.v), blend is not None]
 
     def sample(self, offset: Socket | float, label: str) -> Socket:
-        g = self.g
-        u_low = g.div(g.add(self.x, offset), self.width, label=f"u ({label})")
-        u_high = g.add(u_low, self.step_u)
-        rows = [_lerp(g, self._texel(u_low, i, label), self._texel(u_high, i, label), self.f_column, f"{label} row")
-                for i in range(len(self.v))]
-        return rows[0] if self.f_row is None else _lerp(g, rows[0], rows[1], self.f_row, label)
+        operands = [self.x, offset, self.width, self.step_u, self.f_column, *self.v]
+        if self.f_row is not None:
+            operands.append(self.f_row)
+        if self.blend is not None:
+            operands += [self.blend.weights, *self.v_next]
+        return self.g.call(self.part, *operands, label=label)
+
+
+def table_sample(g: GraphBuilder, x: Socket, offset: Socket, width: Socket, step_u: Socket, f_column: Socket,
+                 *rest: Socket, rows: int, blend: bool) -> Socket:
+    """One bilinear sample of the table (:class:`_Bilinear`): the texels at u = (x + offset) / W and u + 1 / W on
+    ``rows`` rows (texture v given; with two, the row fraction follows), blended by the column (and row) fraction;
+    with ``blend`` each texel is mixed with the next key tile's (weights and its rows' v follow)."""
+    v, rest = rest[:rows], rest[rows:]
+    f_row, rest = (rest[0], rest[1:]) if rows == 2 else (None, rest)
+    weights, v_next = (rest[0], rest[1:]) if blend else (None, ())
+
+    def texel(u: Socket, index: int) -> Socket:
+        first = _texel(g, u, v[index], "texel")
+        if not blend:
+            return first
+        second = _texel(g, u, v_next[index], "texel, next key")
+        return g.multiply_add(weights, g.sub(second, first), first, label="texel, blended")
+
+    u_low = g.div(g.add(x, offset), width, label="u")
+    u_high = g.add(u_low, step_u)
+    lines = [_lerp(g, texel(u_low, i), texel(u_high, i), f_column, "row") for i in range(rows)]
+    return lines[0] if f_row is None else _lerp(g, lines[0], lines[1], f_row, "sample")
+
+
+def _table_sample_part(rows: int, blend: bool) -> parts.Part:
+    inputs = ([("x", parts.FLOAT), ("offset", parts.FLOAT), ("W", parts.FLOAT), ("1 / W", parts.FLOAT),
+               ("column fraction", parts.FLOAT)] + [(f"v (row {i})", parts.FLOAT) for i in range(rows)]
+              + ([("row fraction", parts.FLOAT)] if rows == 2 else [])
+              + ([("key weights", parts.VECTOR)] + [(f"v (row {i}, next key)", parts.FLOAT) for i in range(rows)]
+                 if blend else []))
+    name = "Atmos Table Sample" + (" (Row)" if rows == 1 else "") + (" (Key Blend)" if blend else "")
+    return parts.define(name, 1, inputs, (("Sample", parts.VECTOR),),
+                        lambda g, *sockets: table_sample(g, *sockets, rows=rows, blend=blend),
+                        description="The Precise table sampled bilinearly from its texels (unfiltered fetches)")
+
+
+#: The table-sample parts by (rows, key blend).
+TABLE_SAMPLES = {(rows, blend): _table_sample_part(rows, blend) for rows in (1, 2) for blend in (False, True)}
 
 
 class KeyBlend:
@@ -132,6 +175,12 @@ class KeyBlend:
 
 
 def distance_to_top(g: GraphBuilder, view_z: Socket, h_c: Socket, top: Socket, radius: Socket) -> Socket:
+    """Distance in m from the tile's camera to the top of the atmosphere (:func:`distance_to_top_graph`), one
+    instance of its part."""
+    return g.call(DISTANCE_TO_TOP, view_z, h_c, top, radius, label="to the top")
+
+
+def distance_to_top_graph(g: GraphBuilder, view_z: Socket, h_c: Socket, top: Socket, radius: Socket) -> Socket:
     """Distance in m from the tile's camera (altitude h_c) to the top of the atmosphere along a ray with zenith
     cosine ``view_z``: ``physics.precise.distance_to_top`` node for node (its docstring has the forms)."""
     r_c_c = g.mul(g.add(radius, h_c, label="r_c"), view_z, label="r_c c")
@@ -141,6 +190,12 @@ def distance_to_top(g: GraphBuilder, view_z: Socket, h_c: Socket, top: Socket, r
     up = g.div(top_term, g.max(g.add(root, r_c_c), 1.0), label="to the top (c >= 0)")
     down = g.sub(root, r_c_c, label="to the top (c < 0)")
     return g.max(g.select(g.less_than(view_z, 0.0, label="c < 0"), down, up), 0.0, label="to the top")
+
+
+DISTANCE_TO_TOP = parts.define(
+    "Atmos Distance to Top", 1, (("v_z", parts.FLOAT), ("h_c", parts.FLOAT), ("top", parts.FLOAT), ("R", parts.FLOAT)),
+    (("Distance", parts.FLOAT),), distance_to_top_graph,
+    description="Distance in m from the camera (altitude h_c) to the top of the atmosphere along the view")
 
 
 def azimuth_from_sun(g: GraphBuilder, vx: Socket, vy: Socket, sx: Socket, sy: Socket) -> Socket:

@@ -16,7 +16,8 @@ from collections.abc import Callable, Iterable
 
 import bpy
 
-from . import aerial_perspective, composite, in_render, per_pixel, sky, sky_lighting, sky_view, stamps, surface
+from . import aerial_perspective, composite, in_render, parts, per_pixel, sky, sky_lighting, sky_view, stamps, surface
+from .graph import CompositorBuilder, GraphBuilder
 from .sky import SkyFeatures
 from .terms import AerialFeatures
 
@@ -54,8 +55,18 @@ def _rebuild_sky_lighting(tree: bpy.types.NodeTree, key: str) -> None:
         del tree[sky_lighting.TABLE_KEY]   # the table is written again by the next sync
 
 
+def _rebuild_part(tree: bpy.types.NodeTree, key: str) -> None:
+    """A part's group, built again from the current part of its name (a retired part is left for the clean-up)."""
+    part = parts.part_of(key)
+    if part is not None:
+        builder = CompositorBuilder if tree.bl_idname == "CompositorNodeTree" else GraphBuilder
+        parts.build(tree, part, builder.child)
+
+
 #: kind -> rebuild(tree, its stamped features key).
 REBUILD: dict[stamps.GroupKind, Callable[[bpy.types.NodeTree, str], None]] = {
+    stamps.PART: _rebuild_part,
+    stamps.COMPOSITOR_PART: _rebuild_part,
     stamps.AERIAL: lambda tree, key: aerial_perspective.build_aerial_perspective(tree, AerialFeatures.from_key(key)),
     stamps.AERIAL_SEGMENT: lambda tree, key: aerial_perspective.build_aerial_perspective(
         tree, AerialFeatures.from_key(key), distance="RAY"),
@@ -91,12 +102,16 @@ def rebuild(tree: bpy.types.NodeTree) -> None:
 
 def remove_unused(kinds: Iterable[stamps.GroupKind] | None = None) -> list[str]:
     """Delete every managed group (of ``kinds``, all when None) that nothing uses, so a file the effect left holds
-    no Atmos orphans; the names deleted. Groups that use others go first, so those become unused in turn. A group
-    with a fake user, or used by the artist's own material, stays."""
-    wanted = set(stamps.KINDS if kinds is None else kinds)
+    no Atmos orphans; the names deleted. Groups that use others go first, so those become unused in turn; parts
+    (:mod:`.parts`) that nothing uses any more go too, whatever ``kinds``. A group with a fake user, or used by the
+    artist's own material, stays."""
+    wanted = set(stamps.KINDS if kinds is None else kinds) | set(stamps.PART_KINDS)
     removed = []
-    for kind, tree in reversed(managed_trees()):
-        if kind in wanted and tree.users == 0:
-            removed.append(tree.name)
-            bpy.data.node_groups.remove(tree)
-    return removed
+    while True:
+        unused = [tree for kind, tree in reversed(managed_trees()) if kind in wanted and tree.users == 0]
+        if not unused:
+            return removed
+        for tree in unused:
+            if tree.users == 0:   # a part used by a group removed just before is counted on the next pass
+                removed.append(tree.name)
+                bpy.data.node_groups.remove(tree)

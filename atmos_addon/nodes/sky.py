@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import parameters, stamps
+from . import parameters, parts, stamps
 from .terms import AerialFeatures, scattering_terms
 from .dome import cos_theta_to_sun, dome_distances, sun_direction, view_direction
 from .graph import ArrayBuilder, GraphBuilder, Socket
@@ -109,6 +109,11 @@ class SkyFeatures:
 
 
 def sun_disk(g: GraphBuilder, view: Socket, view_z: Socket, sun: Socket, mu: Socket) -> Socket:
+    """L_disk per channel (:func:`sun_disk_graph`), one instance of its part."""
+    return g.call(SUN_DISK, view, view_z, sun, mu, label="L_disk")
+
+
+def sun_disk_graph(g: GraphBuilder, view: Socket, view_z: Socket, sun: Socket, mu: Socket) -> Socket:
     """L_disk per channel: E_sun / Omega times the limb darkening, inside the disk, above the horizon, camera rays.
 
     The offset from the disk centre uses sin t = |v x l| (1 - mu^2 loses all precision for t ~ 0.005 rad in
@@ -132,6 +137,12 @@ def sun_disk(g: GraphBuilder, view: Socket, view_z: Socket, sun: Socket, mu: Soc
     return g.scale(g.attribute(parameters.SUN_IRRADIANCE), profile, label="L_disk")
 
 
+SUN_DISK = parts.define(
+    "Atmos Sun Disk", 1, (("v", parts.VECTOR), ("v_z", parts.FLOAT), ("l", parts.VECTOR), ("mu", parts.FLOAT)),
+    (("L_disk", parts.VECTOR),), sun_disk_graph,
+    description="The sun's disk: E_sun / Omega with limb darkening, inside the disk, above the horizon, camera rays")
+
+
 def ground(g: GraphBuilder, below: Socket, sun_z: Socket, f_ex: Socket) -> Socket:
     """L_ground exp(-tau) where ``below`` is 1 (the ray meets the ground): albedo E_sun max(l_z, 0) / pi seen
     through the haze in front of it."""
@@ -142,6 +153,12 @@ def ground(g: GraphBuilder, below: Socket, sun_z: Socket, f_ex: Socket) -> Socke
 
 
 def sky_path_length(g: GraphBuilder, view_z: Socket) -> tuple[Socket, Socket, Socket]:
+    """(length m, 1 where the ray meets the ground, the distance to the top m) (:func:`sky_path_length_graph`), one
+    instance of its part."""
+    return g.call(SKY_PATH_LENGTH, view_z, label="path length")
+
+
+def sky_path_length_graph(g: GraphBuilder, view_z: Socket) -> tuple[Socket, Socket, Socket]:
     """(length m, 1 where the ray meets the ground, the distance to the top m) from the Precise tile's camera
     along a ray with zenith cosine ``view_z``: to the ground, else to the top of the atmosphere;
     ``physics.precise.sky_path_length`` node for node (its docstring has the cancellation-free forms)."""
@@ -153,6 +170,12 @@ def sky_path_length(g: GraphBuilder, view_z: Socket) -> tuple[Socket, Socket, So
     to_ground = g.div(ground_term, g.max(g.sub(g.sqrt(g.max(ground_disc, 0.0)), r_c_c), 1.0), label="to the ground")
     to_top = distance_to_top(g, view_z, h_c, top, radius)
     return g.max(g.select(hits, to_ground, to_top), 0.0, label="path length"), hits, to_top
+
+
+SKY_PATH_LENGTH = parts.define(
+    "Atmos Sky Path Length", 1, (("v_z", parts.FLOAT),),
+    (("Length", parts.FLOAT), ("Meets the Ground", parts.FLOAT), ("To the Top", parts.FLOAT)), sky_path_length_graph,
+    description="From the Precise tile's camera along the view: to the ground, else to the top of the atmosphere (m)")
 
 
 # -- the group ---------------------------------------------------------------------------------------

@@ -34,25 +34,31 @@ class GroupKind:
 #: distances taken at most to the top of the atmosphere; sky 2 the layered dome, 3 powers and no phi1 (the aerial
 #: group's terms); surface 2 the Per Pixel mode's outputs, 3 stamped by kind with its modes as features, 4 one node of
 #: the outputs group (which holds the AOV outputs); Per Pixel 4, 5 Vector Math on colours;
-#: In-Render 3 the dome's square roots by one Gamma node.
-AERIAL = GroupKind("Atmos Aerial Perspective", "ShaderNodeTree", 5)
-AERIAL_SEGMENT = GroupKind("Atmos Aerial Perspective (Ray Segment)", "ShaderNodeTree", 5)
-SKY = GroupKind("Atmos Sky", "ShaderNodeTree", 3)
+#: In-Render 3 the dome's square roots by one Gamma node; aerial 6, sky 4, sky view 2, Per Pixel 6: the table samples,
+#: the distance to the top, phi1, the sky's path length and the sun's disk as parts (:mod:`.parts`).
+AERIAL = GroupKind("Atmos Aerial Perspective", "ShaderNodeTree", 6)
+AERIAL_SEGMENT = GroupKind("Atmos Aerial Perspective (Ray Segment)", "ShaderNodeTree", 6)
+SKY = GroupKind("Atmos Sky", "ShaderNodeTree", 4)
 SKY_LIGHTING = GroupKind("Atmos Sky Lighting", "ShaderNodeTree", 1, per_world=True)
 #: The Precise sky for Cycles' camera rays above the horizon (:mod:`.sky_view`).
-SKY_VIEW = GroupKind("Atmos Sky View", "ShaderNodeTree", 1)
+SKY_VIEW = GroupKind("Atmos Sky View", "ShaderNodeTree", 2)
 #: The materials' group (one node of the outputs group) and its outputs (:mod:`.surface`).
 SURFACE = GroupKind("Atmos Surface AOVs", "ShaderNodeTree", 4)
 SURFACE_OUTPUTS = GroupKind("Atmos AOV Outputs", "ShaderNodeTree", 1)
 COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 1)
-PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 5)
+PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 6)
 IN_RENDER_SURFACE = GroupKind("Atmos In-Render Surface", "ShaderNodeTree", 3)
 IN_RENDER_SKY = GroupKind("Atmos In-Render Sky", "ShaderNodeTree", 3)
+#: A part: a piece of an equation built once as its own group and instanced by the groups above (:mod:`.parts`;
+#: its features key is the part's name and version), in shader and in compositor trees.
+PART = GroupKind("Atmos Part", "ShaderNodeTree", 1)
+COMPOSITOR_PART = GroupKind("Atmos Compositor Part", "CompositorNodeTree", 1)
+PART_KINDS = (PART, COMPOSITOR_PART)
 #: Not a node group: the tree of each haze dome's material (In-Render mode), its features key the species.
 DOME_VOLUME = GroupKind("Atmos Dome", "ShaderNodeTree", 3)
 #: Every kind, in build order (a group that instances another comes after it).
-KINDS = (AERIAL, AERIAL_SEGMENT, SKY, SKY_LIGHTING, SKY_VIEW, SURFACE_OUTPUTS, SURFACE, COMPOSITE, PER_PIXEL,
-         IN_RENDER_SURFACE, IN_RENDER_SKY)
+KINDS = (PART, COMPOSITOR_PART, AERIAL, AERIAL_SEGMENT, SKY, SKY_LIGHTING, SKY_VIEW, SURFACE_OUTPUTS, SURFACE,
+         COMPOSITE, PER_PIXEL, IN_RENDER_SURFACE, IN_RENDER_SKY)
 #: The key stamped by releases before the kind key on the per-world lighting groups (their names are numbered).
 _LEGACY_SKY_LIGHTING_KEY = "atmos_sky_lighting"
 

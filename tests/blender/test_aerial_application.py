@@ -18,7 +18,7 @@ import pytest
 from mathutils import Vector
 
 from atmos_addon import plan
-from atmos_addon.nodes import surface
+from atmos_addon.nodes import parts, surface
 from atmos_addon.blender.apply import compositor, materials
 from atmos_addon.blender import orchestrator, scene_reading, settings_io
 from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, \
@@ -748,7 +748,7 @@ def test_precise_level_composites_the_physics(engine: str, tolerance: float, mod
     if mode == "PER_PIXEL":
         per_pixel = bpy.data.node_groups["Atmos Aerial Composite (Per Pixel)"]
         assert any(n.bl_idname == "CompositorNodeImage" and n.image is not None and n.image.packed_file
-                   for n in per_pixel.nodes)
+                   for tree in parts.used_parts(per_pixel) for n in tree.nodes)   # in its table-sample part
     pixels = _render(scene, tmp_path, f"{engine}_{mode}_precise")
     _assert_planes_match(pixels, lambda *plane: _expected_precise(scene, *plane), tolerance,
                          f"precise {engine} {mode}")

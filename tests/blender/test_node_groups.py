@@ -24,7 +24,7 @@ from atmos_addon.physics.sky import (aerial_distance_clamped, dome_distance_appr
 from atmos_addon.nodes import (AERIAL_PARAMETER_NAMES, GROUP_NAME, OUTPUT_INSCATTERING,
                          OUTPUT_TRANSMITTANCE, AerialFeatures, clear_shader_parameters, describe_features,
                          ensure_aerial_perspective_group, node_count, read_shader_parameters, write_shader_parameters)
-from atmos_addon.nodes import stamps
+from atmos_addon.nodes import parts, stamps
 from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
 
 WIDTH, HEIGHT = 12, 8
@@ -276,8 +276,9 @@ def test_features_build_only_the_terms_needed():
             features = AerialFeatures(mie=mie, absorption=absorption)
             tree = ensure_aerial_perspective_group(features)
             counts[features.key] = node_count(tree)
-            hg_nodes[features.key] = sum(1 for n in tree.nodes if n.label == "Phi_HG")
-            attributes[features.key] = {n.attribute_name for n in tree.nodes if n.bl_idname == "ShaderNodeAttribute"}
+            hg_nodes[features.key] = sum(1 for n in parts.inline_nodes(tree) if n.label == "Phi_HG")
+            attributes[features.key] = {n.attribute_name for n in parts.inline_nodes(tree)
+                                        if n.bl_idname == "ShaderNodeAttribute"}
             assert describe_features(features).endswith(f": {counts[features.key]} nodes")
     assert counts == {key: count for key, count in NODE_COUNTS.items() if "+precise" not in key}
     assert hg_nodes == {"rayleigh": 0, "rayleigh+abs": 0, "rayleigh+mie": 1, "rayleigh+mie+abs": 1}
@@ -295,9 +296,9 @@ def test_features_build_only_the_terms_needed():
                 features = AerialFeatures(mie=mie, absorption=absorption, level="precise", blend=blend)
                 tree = ensure_aerial_perspective_group(features)
                 counts[features.key] = node_count(tree)
-                attributes[features.key] = {n.attribute_name for n in tree.nodes
+                attributes[features.key] = {n.attribute_name for n in parts.inline_nodes(tree)
                                             if n.bl_idname == "ShaderNodeAttribute"}
-                textures = [n for n in tree.nodes if n.bl_idname == "ShaderNodeTexImage"]
+                textures = [n for n in parts.inline_nodes(tree) if n.bl_idname == "ShaderNodeTexImage"]
                 assert len(textures) == (2 if blend else 1) * (20 if mie else 12), features.key   # blend: twice
     assert counts == NODE_COUNTS
     # Precise: absorption lives in the table (no extra nodes); Mie adds the HG phase and the A_M block's taps

@@ -16,6 +16,7 @@ import pytest
 from atmos_addon.blender.apply import in_render
 from atmos_addon.blender import orchestrator, quality_choice
 from atmos_addon.physics.quality import SceneSummary
+from atmos_addon.nodes import parts
 from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
 from atmos_addon.nodes.parameters import PRECISE_TILE, RETIRED_PARAMETER_NAMES
 from render_utils import emission_material
@@ -53,14 +54,17 @@ def test_quality_switch_edits_the_same_group_and_materials_keep_it():
     orchestrator.enable_effect(scene)
     tree = bpy.data.node_groups[GROUP]  # the default: Precise with multiple scattering
     assert tree["atmos_features"] == "rayleigh+mie+abs+precise" and scene.atmos.status_quality.startswith("Precise")
-    groups_before = len(bpy.data.node_groups)
+    groups_before = {tree.name for tree in bpy.data.node_groups}
     pointer = tree.as_pointer()
     scene.atmos.quality = "FAST"
     tree = bpy.data.node_groups[GROUP]
     assert tree.as_pointer() == pointer and tree["atmos_features"] == "rayleigh+mie+abs"
-    assert len(tree.nodes) == NODE_COUNTS["rayleigh+mie+abs"]
-    # Only the Precise camera sky view's group goes (Cycles' camera rays read the Fast sky directly).
-    assert len(bpy.data.node_groups) == groups_before - 1 and "Atmos Sky View" not in bpy.data.node_groups
+    assert parts.inline_count(tree) == NODE_COUNTS["rayleigh+mie+abs"]
+    # Only the Precise camera sky view's group goes (Cycles' camera rays read the Fast sky directly), and the parts
+    # only the Precise groups used (the table samples...)
+    gone = groups_before - {tree.name for tree in bpy.data.node_groups}
+    assert "Atmos Sky View" in gone and all(name == "Atmos Sky View" or name in parts.PARTS for name in gone), gone
+    assert "Atmos Sun Disk" in bpy.data.node_groups   # the Fast sky's disk too
     assert scene.atmos.status_built.startswith("Fast, ") and scene.atmos.status_quality.startswith("Fast")
     material = bpy.data.materials["Ground"]
     users = [n for n in material.node_tree.nodes if n.bl_idname == "ShaderNodeGroup"]
@@ -184,7 +188,7 @@ def test_an_animated_sun_bakes_key_tiles_that_each_frame_blends_and_a_pan_bakes_
     assert image.size[1] == tiles * precise_nodes.ALTITUDES
     # resized in place: the groups' image nodes still point at it (re-pointing them re-evaluates every material)
     assert image == first_image
-    taps = [node for node in bpy.data.node_groups[GROUP].nodes if node.bl_idname == "ShaderNodeTexImage"]
+    taps = [node for node in parts.inline_nodes(bpy.data.node_groups[GROUP]) if node.bl_idname == "ShaderNodeTexImage"]
     assert taps and all(node.image == image for node in taps)
     assert blends() == {True} and facts.plan_of(scene).blend
     for frame in (1, 17, 30, 44, 60):
@@ -216,7 +220,7 @@ def test_precise_bakes_follows_the_sun_and_camera_and_cleans_up():
     assert any("baked 1 table tile" in message for message in report.messages), report.messages
     image = bpy.data.images[precise_nodes.IMAGE_NAME]
     assert image.packed_file is not None and tuple(image.size) == (DEFAULT_SHAPE.width, DEFAULT_SHAPE.altitudes)
-    taps = [n for n in bpy.data.node_groups[GROUP].nodes if n.bl_idname == "ShaderNodeTexImage"]
+    taps = [n for n in parts.inline_nodes(bpy.data.node_groups[GROUP]) if n.bl_idname == "ShaderNodeTexImage"]
     assert len(taps) == 20 and all(n.image == image and n.interpolation == "Closest" for n in taps)
     assert scene[PRECISE_TILE][2] == pytest.approx(300.0)
     assert scene.atmos.status_built.startswith("Precise, ")

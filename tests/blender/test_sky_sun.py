@@ -29,7 +29,7 @@ from atmos_addon.physics.sky import (aerial_distance_clamped,
                                      dome_distance_approx, elevation_of, inscattering_layered, sky_radiance)
 from atmos_addon.nodes import (OUTPUT_INSCATTERING, OUTPUT_RADIANCE, SKY_NODE_COUNTS, AerialFeatures, SkyFeatures,
                          ensure_aerial_perspective_group, ensure_sky_group, write_shader_parameters)
-from atmos_addon.nodes import sky_lighting
+from atmos_addon.nodes import parts, sky_lighting
 from atmos_addon.physics.sky_table import sky_lighting_table
 
 ATMOSPHERE = Atmosphere()
@@ -88,14 +88,14 @@ def test_sky_group_counts_constants_and_defaults():
         for absorption in (False, True):
             for ground in ("ALBEDO", "BLACK"):
                 features = SkyFeatures(mie, absorption, ground)
-                assert len(ensure_sky_group(features).nodes) == SKY_NODE_COUNTS[features.key]
-    assert len(bpy.data.node_groups) == 1
+                assert parts.inline_count(ensure_sky_group(features)) == SKY_NODE_COUNTS[features.key]
+    assert [tree.name for tree in bpy.data.node_groups if not parts.is_part(tree)] == ["Atmos Sky"]
     # The aerial group reads the same dome: the same labelled nodes in both trees.
     aerial = ensure_aerial_perspective_group(AerialFeatures())
     sky = ensure_sky_group(SkyFeatures())
     dome_labels = ("x = R_p / H", "c^2 = pi x / 2", "c mu", "(1 - p) c mu", "p c mu + sqrt", "Ch", "R = H Ch")
     for tree in (aerial, sky):
-        assert all(any(n.label == label for n in tree.nodes) for label in dome_labels), tree.name
+        assert all(any(n.label == label for n in parts.inline_nodes(tree)) for label in dome_labels), tree.name
 
 
 def _sky_scene(engine: str):
@@ -249,9 +249,9 @@ def test_precise_sky_group_counts():
                 for blend in (False, True):
                     features = SkyFeatures(mie, absorption, ground, level="precise", blend=blend)
                     tree = ensure_sky_group(features)
-                    assert len(tree.nodes) == SKY_NODE_COUNTS[features.key]
+                    assert parts.inline_count(tree) == SKY_NODE_COUNTS[features.key]
                     fetches = (2 if blend else 1) * (10 if mie else 6)   # whole rows; blended: each twice
-                    assert sum(n.bl_idname == "ShaderNodeTexImage" for n in tree.nodes) == fetches
+                    assert sum(n.bl_idname == "ShaderNodeTexImage" for n in parts.inline_nodes(tree)) == fetches
                     assert SkyFeatures.from_key(features.key) == features
     assert features.dome == SkyFeatures(mie, absorption, ground)
     with pytest.raises(ValueError):
@@ -512,7 +512,8 @@ def test_precise_level_shows_and_lights_with_the_precise_sky(addon):
     sky = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.SKY_NODE_TAG)
     assert sky.node_tree.get("atmos_features", "").endswith("+precise+ground")
     image = bpy.data.images["Atmos Precise Table"]
-    assert all(n.image == image for n in sky.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage")
+    taps = [n for n in parts.inline_nodes(sky.node_tree) if n.bl_idname == "ShaderNodeTexImage"]
+    assert taps and all(n.image == image for n in taps)
     mix = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.MIX_TAG)
     assert mix.inputs[1].links[0].from_node.get("atmos_tag") == world.LIGHTING_BACKGROUND_TAG
     lighting = next(n for n in world.tagged_nodes(scene.world) if n.get("atmos_tag") == world.LIGHTING_TAG)
@@ -569,7 +570,7 @@ def test_the_camera_sky_view_group_samples_the_core_s_camera_sky_view():
         sun = _sun(elevation, azimuth)
         e_sun, tile = _write_precise_sky(scene, sun, altitude)
         image = bpy.data.images[IMAGE_NAME]
-        assert {n.image for n in group.node_tree.nodes if n.bl_idname == "ShaderNodeTexImage"} == {image}
+        assert {n.image for n in parts.inline_nodes(group.node_tree) if n.bl_idname == "ShaderNodeTexImage"} == {image}
         rendered = ru.render_to_array(scene)[..., :3]
         expected = camera_sky_from_tile(tile, directions, sun, ATMOSPHERE)
         above = np.arcsin(directions[..., 2]) > horizon_elevation(altitude, ATMOSPHERE)

@@ -127,13 +127,15 @@ def write_tiles(tiles: list[Tile]) -> bpy.types.Image:
 
 def _link_image(image: bpy.types.Image) -> None:
     """Point the image nodes of the aerial group, of the Precise sky and its camera sky view, of the worlds' lighting
-    groups (the Precise sky view) and of the Per Pixel compositor group (those built) at ``image``."""
+    groups (the Precise sky view), of the Per Pixel compositor group and of the parts they use (the table samples;
+    those built) at ``image``."""
     groups = scene_reading.groups()
     named = [bpy.data.node_groups.get(name) for name in (groups.aerial_perspective.GROUP_NAME,
                                                         groups.sky.SKY_GROUP_NAME, groups.stamps.SKY_VIEW.name,
                                                         groups.per_pixel.GROUP_NAME)]
     lighting = [tree for tree in bpy.data.node_groups if groups.sky_lighting.is_sky_lighting_group(tree)]
-    for group in named + lighting:
+    used = set().union(*(groups.parts.used_parts(group) for group in named + lighting if group is not None))
+    for group in named + lighting + sorted(used, key=lambda tree: tree.name):
         stale = [node for node in (group.nodes if group is not None else ())
                  if node.bl_idname in ("ShaderNodeTexImage", "CompositorNodeImage") and node.image != image]
         if stale:

@@ -1,0 +1,173 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Parts: pieces of an equation built once as their own node group and instanced wherever the equations use them.
+
+Blender re-runs the whole update of a node tree after every node, link or value a script adds: about 2 us for each
+node already in the tree (a Math node added to a tree of 400 nodes costs 1.1 ms, to one of 50 about 0.1 ms; Blender
+5.2.3), so building a tree costs the square of its size, and the Precise sky (244 nodes) and Per Pixel groups (220)
+took most of an enable. A part (the bilinear table sample, the distance to the top of the atmosphere, phi1, the
+sun's disk...) is a small group of its own, built once however many times it is used, and a one-node instance in the
+group that uses it, so every tree stays small. What renders is the same: Cycles and Eevee inline groups, and the
+numpy builder (:class:`.graph.ArrayBuilder`) evaluates a part's equations in place, so the parity tests read the same
+arithmetic.
+
+A :class:`Part` names its group, its version, its inputs and outputs and the function that builds it on any builder
+(``build(g, *inputs)``, returning its output or a tuple of them). Parts are stamped like every managed group (kind
+:data:`.stamps.PART` or :data:`.stamps.COMPOSITOR_PART`, the part's name and version as the features key), rebuilt in
+place when stale, removed once nothing uses them (:func:`.registry.remove_unused`), fingerprinted against hand edits
+(:mod:`atmos_addon.blender.group_integrity`). In a compositor tree, where parameters are the top group's inputs and
+not Attribute nodes, the parameters a part reads (:attr:`Part.parameters`) become inputs of its group too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import bpy
+
+from . import stamps
+
+#: A part's socket kinds and the interface socket type each becomes.
+FLOAT, VECTOR = "FLOAT", "VECTOR"
+_SOCKET_TYPES = {FLOAT: "NodeSocketFloat", VECTOR: "NodeSocketVector"}
+#: Group node type by tree type.
+GROUP_NODES = {"ShaderNodeTree": "ShaderNodeGroup", "CompositorNodeTree": "CompositorNodeGroup"}
+_KINDS = {"ShaderNodeTree": stamps.PART, "CompositorNodeTree": stamps.COMPOSITOR_PART}
+
+
+@dataclass(frozen=True)
+class Part:
+    """A piece of an equation built as its own node group: ``build(g, *inputs)`` on any builder returns its output
+    (or a tuple of them, in :attr:`outputs` order); :attr:`parameters` are the scene parameters it reads (name,
+    kind), which a compositor copy takes as inputs after :attr:`inputs`."""
+
+    name: str
+    version: int
+    inputs: tuple[tuple[str, str], ...]
+    outputs: tuple[tuple[str, str], ...]
+    build: Callable[..., Any]
+    parameters: tuple[tuple[str, str], ...] = ()
+    description: str = ""
+
+    @property
+    def key(self) -> str:
+        """The features key stamped on its group: name and version."""
+        return f"{self.name}|{self.version}"
+
+
+#: Every part by name (filled as the modules that define them are imported: :func:`define`).
+PARTS: dict[str, Part] = {}
+
+
+def define(name: str, version: int, inputs, outputs, build: Callable[..., Any], *, parameters=(),
+           description: str = "") -> Part:
+    """Make and register a part (names are unique)."""
+    if name in PARTS:
+        raise ValueError(f"part {name!r} is defined twice")
+    part = Part(name, version, tuple(inputs), tuple(outputs), build, tuple(parameters), description)
+    PARTS[name] = part
+    return part
+
+
+def group_name(part: Part, tree_type: str) -> str:
+    """The data-block name of ``part``'s group for a tree of ``tree_type``."""
+    return part.name if tree_type == "ShaderNodeTree" else f"{part.name} (Compositor)"
+
+
+def interface(part: Part, tree_type: str) -> list[tuple[str, str, str]]:
+    """(name, in/out, socket type) of ``part``'s group in a tree of ``tree_type``, outputs first as Blender lists."""
+    inputs = part.inputs + (part.parameters if tree_type == "CompositorNodeTree" else ())
+    return ([(name, "OUTPUT", _SOCKET_TYPES[kind]) for name, kind in part.outputs]
+            + [(name, "INPUT", _SOCKET_TYPES[kind]) for name, kind in inputs])
+
+
+def _ensure_interface(tree: bpy.types.NodeTree, wanted: list[tuple[str, str, str]]) -> None:
+    items = [item for item in tree.interface.items_tree if item.item_type == "SOCKET"]
+    if [(item.name, item.in_out, item.socket_type) for item in items] == wanted:
+        return
+    tree.interface.clear()
+    for name, in_out, socket_type in wanted:
+        tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+
+
+def build(tree: bpy.types.NodeTree, part: Part, make_builder: Callable[..., Any]) -> None:
+    """Clear ``tree`` and build ``part`` in it with the builder ``make_builder(tree, parameters)`` makes
+    (``parameters``: the group's parameter inputs by name, for a compositor builder); then stamp it."""
+    tree.nodes.clear()
+    if hasattr(tree, "description"):
+        tree.description = part.description
+    _ensure_interface(tree, interface(part, tree.bl_idname))
+    group_in = tree.nodes.new("NodeGroupInput")
+    parameters = ({name: group_in.outputs[name] for name, _ in part.parameters}
+                  if tree.bl_idname == "CompositorNodeTree" else {})
+    g = make_builder(tree, parameters)
+    outputs = part.build(g, *(group_in.outputs[name] for name, _ in part.inputs))
+    outputs = outputs if isinstance(outputs, tuple) and len(part.outputs) > 1 else (outputs,)
+    group_out = g.node("NodeGroupOutput", label="Group Output")
+    for (name, _), value in zip(part.outputs, outputs):
+        g._feed(group_out, group_out.inputs[name], value)
+    g.set_depth(group_out, g.max_depth + 1)
+    prune = getattr(g, "prune", None)
+    if prune is not None:
+        prune()
+    g.layout()
+    group_in.location = (-220.0, 0.0)
+    stamps.stamp(tree, _KINDS[tree.bl_idname], part.key)
+
+
+def ensure(part: Part, tree_type: str, make_builder: Callable[..., Any]) -> bpy.types.NodeTree:
+    """``part``'s group for trees of ``tree_type``, built (:func:`build`) when missing or stale. A data-block of its
+    name that is not this part's is renamed "... (not Atmos)" and left to its users."""
+    kind = _KINDS[tree_type]
+    name = group_name(part, tree_type)
+    tree = bpy.data.node_groups.get(name)
+    if tree is not None and (tree.bl_idname != tree_type or stamps.kind_of(tree) != kind
+                             or str(tree.get(stamps.FEATURES_KEY, "")).split("|")[0] != part.name):
+        tree.name = name + " (not Atmos)"
+        tree = None
+    if tree is None:
+        tree = bpy.data.node_groups.new(name, tree_type)
+    if not stamps.is_current(tree, kind, part.key):
+        build(tree, part, make_builder)
+    return tree
+
+
+def part_of(key: str) -> Part | None:
+    """The current part a group stamped with features ``key`` was built from (by name), or None (retired)."""
+    return PARTS.get(key.split("|")[0])
+
+
+def is_part(tree: bpy.types.NodeTree | None) -> bool:
+    """True for a part's group."""
+    return stamps.kind_of(tree) in stamps.PART_KINDS
+
+
+def inline_count(tree: bpy.types.NodeTree) -> int:
+    """The nodes ``tree`` evaluates, its parts' counted as if inlined: a part's instance counts its group's nodes
+    but its Group Input and Output."""
+    return len(inline_nodes(tree))
+
+
+def used_parts(tree: bpy.types.NodeTree) -> set:
+    """The parts' groups ``tree`` instances, directly or through other parts."""
+    found = set()
+    for node in tree.nodes:
+        inner = getattr(node, "node_tree", None) if node.bl_idname in GROUP_NODES.values() else None
+        if is_part(inner) and inner not in found:
+            found.add(inner)
+            found |= used_parts(inner)
+    return found
+
+
+def inline_nodes(tree: bpy.types.NodeTree) -> list:
+    """The nodes ``tree`` evaluates as if its parts were inlined: its own but its parts' instances, and for each
+    instance its part's nodes (recursively) but their Group Input and Output; :func:`inline_count` is its length."""
+    found = []
+    for node in tree.nodes:
+        inner = getattr(node, "node_tree", None) if node.bl_idname in GROUP_NODES.values() else None
+        if is_part(inner):
+            found += [n for n in inline_nodes(inner) if n.bl_idname not in ("NodeGroupInput", "NodeGroupOutput")]
+        else:
+            found.append(node)
+    return found

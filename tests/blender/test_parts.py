@@ -1,0 +1,142 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Parts (:mod:`atmos_addon.nodes.parts`): pieces of the equations built once as node groups of their own.
+
+Blender re-runs a tree's whole update after each node a script adds, so a tree's build costs the square of its
+size; the parts keep every tree Atmos builds small. These tests hold what that must not cost: each part is one
+data-block however often it is used, the trees stay under a size, the sky evaluates as many nodes as before, a
+user's group that bears a part's name is left alone, a hand edit inside a part is reported and reset, a stale part
+is rebuilt in place, and nothing is left behind by a mode switch or a disable.
+"""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+import pytest
+
+from atmos_addon import api
+from atmos_addon.blender import group_integrity, orchestrator
+from atmos_addon.nodes import SKY_NODE_COUNTS, parts, registry, stamps
+
+pytestmark = pytest.mark.usefixtures("addon")
+
+#: The most nodes any tree Atmos builds for the default may hold (the largest, the Precise sky's, holds 115 since the
+#: parts; 244 before).
+LARGEST_TREE = 120
+
+
+def _new_user_scene() -> bpy.types.Scene:
+    """An empty factory file: a camera, a sun 20 deg up and one plane with a node-based material."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0.0, 0.0, 2.0)
+    camera.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    scene.collection.objects.link(sun)
+    mesh = bpy.data.meshes.new("Plane")
+    mesh.from_pydata([(-5, 50, 0), (5, 50, 0), (5, 50, 5), (-5, 50, 5)], [], [(0, 1, 2, 3)])
+    material = bpy.data.materials.new("Grey")
+    if bpy.app.version < (5, 0, 0):
+        material.use_nodes = True
+    mesh.materials.append(material)
+    scene.collection.objects.link(bpy.data.objects.new("Plane", mesh))
+    return scene
+
+
+def _part_groups() -> list:
+    return [tree for tree in bpy.data.node_groups if parts.is_part(tree)]
+
+
+def _part_nodes(tree) -> list:
+    return [node for node in tree.nodes
+            if node.bl_idname in parts.GROUP_NODES.values() and parts.is_part(node.node_tree)]
+
+
+def test_default_builds_each_part_once_and_small_trees():
+    scene = _new_user_scene()
+    api.enable(scene, preset="clear", sun_elevation_deg=20.0)
+    managed = [tree for _, tree in registry.managed_trees()]
+    found = _part_groups()
+    assert {tree.name for tree in found} >= {"Atmos Table Sample (Compositor)", "Atmos Table Sample (Row)",
+                                            "Atmos phi1", "Atmos Distance to Top", "Atmos Sun Disk",
+                                            "Atmos Sky Path Length"}
+    assert len({tree.name for tree in found}) == len(found)
+    assert not any(tree.name[-4:-3] == "." for tree in bpy.data.node_groups), "a part built twice"
+    for tree in managed:
+        assert len(tree.nodes) <= LARGEST_TREE, (tree.name, len(tree.nodes))
+        for node in _part_nodes(tree):
+            part = parts.part_of(node.node_tree[stamps.FEATURES_KEY])
+            assert stamps.is_current(node.node_tree, parts._KINDS[node.node_tree.bl_idname], part.key)
+    sky = bpy.data.node_groups[stamps.SKY.name]
+    features_key = sky[stamps.FEATURES_KEY]
+    assert _part_nodes(sky), "the sky instances its parts"
+    assert parts.inline_count(sky) == SKY_NODE_COUNTS[features_key]   # the same equations as one flat tree
+    table_samples = [node for node in sky.nodes if node.bl_idname == "ShaderNodeGroup"
+                     and node.node_tree.name.startswith("Atmos Table Sample")]
+    assert len(table_samples) == 5 and len({node.node_tree for node in table_samples}) == 1
+    image = bpy.data.images["Atmos Precise Table"]
+    for tree in found:
+        for node in tree.nodes:
+            if node.bl_idname in ("ShaderNodeTexImage", "CompositorNodeImage"):
+                assert node.image == image, tree.name   # the table's image reaches the nodes inside the parts
+    assert group_integrity.edited_groups(force=True) == []
+
+
+def test_mode_switch_and_disable_leave_no_part_behind():
+    scene = _new_user_scene()
+    api.enable(scene, preset="clear")
+    assert any(tree.bl_idname == "CompositorNodeTree" for tree in _part_groups())   # the Per Pixel group's
+    scene.atmos.render_mode = "COMPOSITOR"
+    assert not [tree.name for tree in _part_groups() if tree.users == 0]
+    assert not any(tree.bl_idname == "CompositorNodeTree" for tree in _part_groups())
+    scene.atmos.render_mode = "PER_PIXEL"
+    api.disable(scene)
+    assert _part_groups() == []
+    assert registry.managed_trees() == []
+
+
+def test_a_users_group_with_a_parts_name_is_left_alone():
+    scene = _new_user_scene()
+    theirs = bpy.data.node_groups.new("Atmos Sun Disk", "ShaderNodeTree")
+    theirs.nodes.new("ShaderNodeMath")
+    theirs.use_fake_user = True
+    api.enable(scene, preset="clear")
+    assert theirs.name == "Atmos Sun Disk (not Atmos)" and len(theirs.nodes) == 1
+    ours = bpy.data.node_groups["Atmos Sun Disk"]
+    assert ours != theirs and parts.is_part(ours)
+    api.disable(scene)
+    assert bpy.data.node_groups.get("Atmos Sun Disk (not Atmos)") == theirs and len(theirs.nodes) == 1
+
+
+def test_a_hand_edit_inside_a_part_is_reported_and_reset():
+    scene = _new_user_scene()
+    api.enable(scene, preset="clear")
+    part = bpy.data.node_groups["Atmos Sun Disk"]
+    maths = next(node for node in part.nodes if node.bl_idname == "ShaderNodeMath" and not node.inputs[1].is_linked)
+    maths.inputs[1].default_value += 1.0
+    assert "Atmos Sun Disk" in group_integrity.edited_groups(force=True)
+    users = [node for tree in bpy.data.node_groups for node in _part_nodes(tree) if node.node_tree == part]
+    assert "Atmos Sun Disk" in group_integrity.reset_groups(["Atmos Sun Disk"])
+    assert bpy.data.node_groups["Atmos Sun Disk"] == part   # rebuilt in place: its users keep it
+    assert all(node.node_tree == part and node.outputs[0].is_linked for node in users)
+    assert "Atmos Sun Disk" not in group_integrity.edited_groups(force=True)
+
+
+def test_a_stale_part_is_rebuilt_in_place_when_its_user_is():
+    scene = _new_user_scene()
+    api.enable(scene, preset="clear")
+    part = bpy.data.node_groups["Atmos Sky Path Length"]
+    part[stamps.FEATURES_KEY] = "Atmos Sky Path Length|0"   # as an older release would have stamped it
+    part.nodes.clear()
+    sky = bpy.data.node_groups[stamps.SKY.name]
+    sky[stamps.VERSION_KEY] = stamps.SKY.version - 1
+    orchestrator.refresh_effect(scene)
+    assert bpy.data.node_groups["Atmos Sky Path Length"] == part and bpy.data.node_groups[stamps.SKY.name] == sky
+    assert stamps.is_current(part, stamps.PART, parts.PARTS["Atmos Sky Path Length"].key) and len(part.nodes) > 2
+    assert stamps.is_current(sky, stamps.SKY, sky[stamps.FEATURES_KEY])
+    assert parts.inline_count(sky) == SKY_NODE_COUNTS[sky[stamps.FEATURES_KEY]]
+    assert not bpy.data.node_groups.get("Atmos Sky Path Length.001")
