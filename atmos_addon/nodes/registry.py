@@ -114,4 +114,7 @@ def remove_unused(kinds: Iterable[stamps.GroupKind] | None = None) -> list[str]:
         for tree in unused:
             if tree.users == 0:   # a part used by a group removed just before is counted on the next pass
                 removed.append(tree.name)
-                bpy.data.node_groups.remove(tree)
+                # Nothing uses it, so the unlink pass of a plain remove (which visits every data-block of the
+                # file: 20-40 ms each with 30 000 of them) has nothing to do; the users of what it uses are
+                # still decremented.
+                bpy.data.node_groups.remove(tree, do_unlink=False)
