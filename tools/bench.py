@@ -372,12 +372,16 @@ BSDF), a camera and a sun lamp. The sync rows time {repeats} writes of `scene.at
 
 NOTES = """## What the numbers say
 
+- **Render**: the default costs 1.11x Blender's sky in Cycles in this run, 1.07x in the run before it (both with the
+  parts below, which change nothing that renders: Cycles and Eevee inline node groups) and 1.10x at stop 48: the
+  1.10x target is met within this machine's noise, not with a margin.
 - **Parameter changes** cost the same with 10 or 5000 materials: a sync writes seven scene custom properties (plus the
   world's sky values) and never touches a material. An edit of the air or the haze also remakes the E_sun table the
   sun's drivers read (`physics.sun.sun_irradiance_table`, 0.7 ms: its optical depths per unit coefficient are kept per
   geometry) and rewrites their keys: 4.6-5.5 ms a sync against 3.4-4.4 ms before the drivers (5.2.3, interleaved A/B
-  of `tools/bench_scale.py`, two runs each, stop 45); this run 4.16-4.69 ms (the runs before 4.26-4.81 ms and
-  4.35-5.11 ms, one row above 5 ms): the target is met within this machine's noise, not with a margin.
+  of `tools/bench_scale.py`, two runs each, stop 45); this run 4.66-5.07 ms, two rows just above 5 ms on a machine
+  that built the scene in 8.9-11.4 s (5.4-7.9 s in the run before it, 4.58-4.81 ms; 4.16-4.69 ms and 4.26-4.81 ms
+  before that): the target is met within this machine's noise, not with a margin.
 - **Enable** is dominated by adding one group node per material. Per material two RNA edits remain,
   `nodes.new` and the `node.node_tree` write; every other access is a read (node locations and widths with
   one `foreach_get` each, the new location with one `foreach_set`, which skips the node-tree update). The material
@@ -395,19 +399,35 @@ NOTES = """## What the numbers say
 - **Per edit**: `tools/bench_node_edits.py` times the two edits against the file's size: `nodes.new` 26-27 us and
   the `node_tree` write 22 us in 4.5.15, 22 us and 19 us in 5.2.3 and 5.3.0, the same with 1000 and with 5000
   materials, so an enable grows linearly with the materials.
-- **The 1 s target**: 1.54-1.58 s in this run on the three versions (1.50-1.60 s and 1.57-1.63 s in the runs before,
-  the same code in the enable: building the scene, not Atmos, took 6.5-8.4 s against 5.9-6.9 s), on an Intel Xeon
-  where the runs before stop 45 had an AMD EPYC (1.01-1.11 s; the same code, interleaved on this machine, 1.53-1.59 s;
-  building the scene 4.9-5.0 s there). Since Precise with multiple scattering became the default (December 2026) it
-  was 5.0-6.4 s, then 1.2-1.4 s before the Per Pixel default, 1.5-2.1 s with it. That mode builds its compositor
-  group, which was written one Math node per channel (396 nodes at Precise, 0.45-0.91 s) and is now one Vector Math
-  node per colour operation, as the shader groups are (220 nodes, 0.13-0.27 s; `tools/bench_group_builds.py`, 5.2.3):
-  every node and link Blender adds re-runs the tree's update over the nodes already there (a node 0.07 ms into a
-  100-node tree, 0.33 ms into 400, 3.6 ms into 1600), so a build costs the square of its size. What is left (cProfile,
-  `.venv/bpy-5.2.3/bin/python tools/bench_scale.py --profile`, 1.12 s): the material pass 0.80 s (Blender's two edits
-  per material about 0.35 s, the one attach 0.15 s, the rest Python reading each material's outputs and alpha), the
-  Per Pixel, sky and camera sky groups 0.30 s. Skipping a node property write that would not change the value (each
-  write re-runs the tree's update) took 8 % off the group builds (an interleaved A/B of six builds). Earlier, a
+- **The 1 s target**: 1.38-1.56 s in this run on the three versions, not met; this run's machine was slow (building the
+  scene, not Atmos, took 8.9-11.4 s; the run before it, with the same enable code and the older disable, 1.15-1.34 s,
+  5.4-7.9 s to build the scene). An interleaved A/B on 5.2.3 (`tools/bench_scale.py`, the code before, c275afd, in a worktree
+  and this code, two runs each, stop 50): enable 1.66-1.71 s -> 1.21-1.42 s, its CPU time 2.13-2.19 s -> 1.37-1.58 s,
+  the mode switch 1.99 s -> 1.76 s, disable 0.86-0.88 s -> 0.62-0.65 s. The runs before stop 45 had an AMD EPYC
+  (1.01-1.11 s then; the same code, interleaved on this Intel Xeon, 1.53-1.59 s). Since Precise with multiple
+  scattering became the default (December 2026) it was 5.0-6.4 s, then 1.2-1.4 s before the Per Pixel default,
+  1.5-2.1 s with it. Every node and link Blender adds re-runs the tree's update over the nodes already there (a Math
+  node 0.07 ms into a 100-node tree, 0.33 ms into 400, 3.6 ms into 1600), so a build costs the square of its size:
+  the Per Pixel group was written one Math node per channel (396 nodes, 0.45-0.91 s), then one Vector Math node per
+  colour operation as the shader groups are (220 nodes, 0.13-0.27 s), and since stop 50 the groups are built from
+  **parts** (`atmos_addon/nodes/parts.py`): the table sample (five in each Precise group), phi1, the distance to the
+  top, the sky's path length and the sun's disk are small groups of their own, built once and instanced, so the
+  Precise sky holds 115 nodes of its own (244 inlined), the Per Pixel group 110 (224), the camera sky view 77 (107),
+  and in a fresh file the aerial, Per Pixel, sky and camera sky groups build in 0.04 / 0.05 / 0.05-0.06 / 0.02 s
+  against 0.11 / 0.13 / 0.10-0.12 / 0.03 s (`tools/bench_group_builds.py`, 5.2.3, the code before in a worktree,
+  interleaved, two runs each; what renders is the same nodes, the render rows above within their noise). What is
+  left is Blender's. Each edit of a material is one update of its small tree (35-40 us: the `nodes.new` and the
+  `node_tree` write) and the attach at the end updates each material once more (0.2 s for 5000). An edit after
+  which a tree's output may have changed (a group node whose group holds AOV outputs is an output) makes Blender list
+  every group node of the file to find the tree's users (`NodeTreeMainUpdater::update_rooted`; 0.4-0.5 ms an edit
+  with 5000 materials), which is why the materials' group instances an empty stand-in while they are edited, and so
+  does each socket added to a group's interface (0.7 ms each: 38 ms for the parts' sockets, 25 ms the stand-in's).
+  In one process on 5.2.3 (enable of 20, 1000 and 5000 materials with 4 objects each, the second run of each) the
+  material pass cost 0.16 s per 1000 materials and the rest 0.21-0.23 s with 20 or 1000 and 0.35-0.41 s with 5000
+  (those interfaces and data-blocks, listing the scene's materials 48 ms); a process's first large enable is 0.3-0.5
+  s slower than its next (the same code: Blender allocating the new nodes), and the bench times the first.
+  Skipping a node property write that would not change the value (each write re-runs the tree's update) took 8 % off
+  the group builds (an interleaved A/B of six builds). Earlier, a
   cProfile of enable on 5.2.3 (the same command) showed 3.0 s in `enable_effect`'s own calls into Blender: the
   depsgraph update that reads the camera's matrix, which re-evaluated every object because the scene's properties had
   just been written, and in it the depsgraph handler's bake, whose link of the table image into the aerial group was
@@ -419,23 +439,26 @@ NOTES = """## What the numbers say
   (2.7 s then: every edited material) is Blender's, paid by the next redraw or render whatever Atmos does (2.41 s on
   5.2.3, `tools/measure_scene_tags.py`, below); the scale script evaluates it untimed before the sun-move rows, so
   since this run Refresh's row (0.5-0.7 s, 2.0-2.9 s before) no longer holds it. A preset load changes the atmosphere
-  and so re-bakes the tables instead of the 20 ms target: 1.55-1.85 s (1.60-1.92 s and 1.40-1.65 s in the runs before,
-  2.46-2.72 s before that: the tables below). The sun table's grids are kept when only coefficients change; the tables
-  0.97-1.02 s on 2 cores (`tools/bench_tables.py`, above; 1.07-1.11 s in the run before; 0.88-0.96 s before stop 47's
+  and so re-bakes the tables instead of the 20 ms target: 1.60-1.78 s (1.50-1.79 s and 1.55-1.85 s in the runs before,
+  2.46-2.72 s before stop 46: the tables below). The sun table's grids are kept when only coefficients change; the
+  tables 0.89-0.96 s on 2 cores (`tools/bench_tables.py`, above; 0.97-1.02 s at stop 48; 0.88-0.96 s before stop 47's
   second order by direction, which took the Martian sunset from 18.7 % to 6.0 %), 1.85-1.97 s before the
   multiple-scattering table's 24 altitudes and 16 steps, about 4 s before its orders were solved by GMRES and its
-  altitudes built on threads; the tile 0.40-0.46 s (0.47-0.51 s before the lookups below, 0.75 s before the threads).
+  altitudes built on threads; the tile 0.37-0.59 s (0.40-0.46 s at stop 48, 0.47-0.51 s before the lookups below,
+  0.75 s before the threads).
   In the interface the panel's preset menu goes through the same worker thread as any edit (below).
-- **An atmosphere edit** re-bakes the per-atmosphere tables and the tile: 1.42 s in the background (the still
-  valley above; 1.39 s and 1.35 s in the runs before, before stop 47's second order by direction, 2.66 s before that),
+- **An atmosphere edit** re-bakes the per-atmosphere tables and the tile: 1.52 s in the background (the still
+  valley above; 1.68 s and 1.42 s in the runs before, on this stop's slower machine and at stop 48; 1.39 s and 1.35 s
+  before stop 47's second order by direction, 2.66 s before that),
   so the 1 s target is not met there on this 2-core machine. In the interface the
   bake runs on a worker thread (`blender/apply/precise_tables.py`, `bake_on_worker`, stop 46): the main thread's
   part of an edit (its sync, the hand-over to the worker 0.3 s after the last change, the images written when the
   worker is done) is 9 ms. Since stop 48 the worker first bakes the tile from preview tables
   (`physics.precise.PREVIEW_RESOLUTION`: the multiple-scattering table at 12 altitudes and 17 sun cosines, a fifth
   of its build) and writes it at once, its key marked as a preview, then bakes the full tables and writes their tile
-  over it: the sky and haze show the edit 0.66 s after the hand-over (the first-look row; 1.4 s before), and the full
-  table follows, 2.0 s after it (the preview's 0.6 s comes first on the same worker). The preview against the full
+  over it: the sky and haze show the edit 0.64 s after the hand-over (the first-look row; 0.62-0.66 s in the runs
+  before, 1.4 s before the preview), and the full table follows, 2.6 s after it (2.0-2.1 s in the runs before; the
+  preview's 0.6 s comes first on the same worker). The preview against the full
   tables, per texel of the tile (clear preset, camera 30 m up; `tests/physics/test_precise.py`): 99th percentile
   1.2 % at a 30 deg sun and 2.2 % at 5 deg (7.3 % before stop 49's sun-cosine nodes, of which the preview's are
   every other one), median 0.0 %; against the complete reference by day 1.1-2.1 % (the full table's 1.1-2.0 %), the
@@ -482,7 +505,10 @@ NOTES = """## What the numbers say
   all 5000 users).
 - **Node groups**: the aerial and sky groups (about 330 nodes) are laid out in Python and written with one
   `foreach_set` per group.
-- **Disable** is one `nodes.remove` per material, the material group detached meanwhile.
+- **Disable** is one `nodes.remove` per material, the material group detached meanwhile, then the groups nothing
+  uses any more, each deleted without Blender's unlink pass (which visits every data-block of the file, 20-40 ms a
+  group with 30 000 of them; nothing refers to a group with no users): 0.62-0.65 s against 0.86-0.88 s before (the
+  A/B above), 1.15-1.19 s in the run that had the parts but not this.
 - **A sun move in a large scene** now tags nothing. The sun's direction and E_sun, and the lamp's colour and
   strength, are drivers on the lamp (`blender/apply/sun_drivers.py`, docs/sky_and_sun.md): Blender evaluates them in
   the depsgraph update of the move itself, and what Atmos still writes on a move (the sun's status and the ground
