@@ -402,9 +402,9 @@ NOTES = """## What the numbers say
 - **The 1 s target**: 1.38-1.56 s in this run on the three versions, not met; this run's machine was slow (building the
   scene, not Atmos, took 8.9-11.4 s; the run before it, with the same enable code and the older disable, 1.15-1.34 s,
   5.4-7.9 s to build the scene). An interleaved A/B on 5.2.3 (`tools/bench_scale.py`, the code before, c275afd, in a
-  worktree and this code, two runs each, stop 50): enable 1.66-1.71 s -> 1.21-1.42 s, its CPU time 2.13-2.19 s -> 1.37-1.58 s,
-  the mode switch 1.99 s -> 1.76 s, disable 0.86-0.88 s -> 0.62-0.65 s. The runs before stop 45 had an AMD EPYC
-  (1.01-1.11 s then; the same code, interleaved on this Intel Xeon, 1.53-1.59 s). Since Precise with multiple
+  worktree and this code, two runs each, stop 50): enable 1.66-1.71 s -> 1.21-1.42 s, its CPU time 2.13-2.19 s ->
+  1.37-1.58 s, the mode switch 1.99 s -> 1.76 s, disable 0.86-0.88 s -> 0.62-0.65 s. The runs before stop 45 had an
+  AMD EPYC (1.01-1.11 s then; the same code, interleaved on this Intel Xeon, 1.53-1.59 s). Since Precise with multiple
   scattering became the default (December 2026) it was 5.0-6.4 s, then 1.2-1.4 s before the Per Pixel default,
   1.5-2.1 s with it. Every node and link Blender adds re-runs the tree's update over the nodes already there (a Math
   node 0.07 ms into a 100-node tree, 0.33 ms into 400, 3.6 ms into 1600), so a build costs the square of its size:
