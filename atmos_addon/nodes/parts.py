@@ -62,9 +62,10 @@ PARTS: dict[str, Part] = {}
 
 def define(name: str, version: int, inputs, outputs, build: Callable[..., Any], *, parameters=(),
            description: str = "") -> Part:
-    """Make and register a part (names are unique)."""
-    if name in PARTS:
-        raise ValueError(f"part {name!r} is defined twice")
+    """Make and register a part. Names are unique: a second part of a name from another module is an error; from
+    the same module (the module reloaded, as Blender's Reload Scripts does) it replaces the first."""
+    if name in PARTS and PARTS[name].build.__module__ != build.__module__:
+        raise ValueError(f"part {name!r} is defined twice ({PARTS[name].build.__module__}, {build.__module__})")
     part = Part(name, version, tuple(inputs), tuple(outputs), build, tuple(parameters), description)
     PARTS[name] = part
     return part

@@ -140,3 +140,21 @@ def test_a_stale_part_is_rebuilt_in_place_when_its_user_is():
     assert stamps.is_current(sky, stamps.SKY, sky[stamps.FEATURES_KEY])
     assert parts.inline_count(sky) == SKY_NODE_COUNTS[sky[stamps.FEATURES_KEY]]
     assert not bpy.data.node_groups.get("Atmos Sky Path Length.001")
+
+
+def test_a_part_name_is_one_part_and_a_reload_redefines_it():
+    def build(g, x):
+        return g.mul(x, 2.0)
+
+    def other(g, x):
+        return g.mul(x, 3.0)
+
+    other.__module__ = "somewhere.else"
+    try:
+        first = parts.define("Atmos Test Part", 1, (("x", parts.FLOAT),), (("y", parts.FLOAT),), build)
+        again = parts.define("Atmos Test Part", 2, (("x", parts.FLOAT),), (("y", parts.FLOAT),), build)
+        assert parts.PARTS["Atmos Test Part"] == again != first   # the module reloaded: the new definition
+        with pytest.raises(ValueError, match="defined twice"):
+            parts.define("Atmos Test Part", 1, (("x", parts.FLOAT),), (("y", parts.FLOAT),), other)
+    finally:
+        parts.PARTS.pop("Atmos Test Part", None)
