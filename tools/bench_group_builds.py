@@ -3,10 +3,11 @@
 
     .venv/bpy-5.2.3/bin/python tools/bench_group_builds.py [--repeats 3]
 
-Builds, in a fresh file, the Precise level's groups an enable may build: the Compositor mode's per-sample
-"Atmos Aerial Perspective", the Per Pixel mode's compositor group (a colour one vector socket, as in the shader
-groups), the world's "Atmos Sky" and its camera "Atmos Sky View"; prints each one's node count (its own, and with its parts' nodes counted as if
-inlined: ``atmos_addon.nodes.parts``) and the median wall time of ``--repeats`` builds, its parts built anew each time.
+Builds, in a fresh file, the Precise level's groups an enable may build: the Compositor mode's per-sample "Atmos
+Aerial Perspective", the Per Pixel mode's compositor group (a colour one vector socket, as in the shader groups), the
+world's "Atmos Sky" and its camera "Atmos Sky View"; prints each one's node count (its own, and with its parts' nodes
+counted as if inlined: ``atmos_addon.nodes.parts``) and the median wall time of ``--repeats`` builds, its parts built
+anew each time.
 Then the cost of one ``nodes.new`` and one ``links.new`` in a compositor tree already holding 100, 400 and 1600 nodes:
 Blender re-runs the tree's update over the nodes already there at every edit, so a build grows with the square of
 its node count. Python wall time in background mode; not a test.
