@@ -36,6 +36,16 @@ GROUP_NODES = {"ShaderNodeTree": "ShaderNodeGroup", "CompositorNodeTree": "Compo
 _KINDS = {"ShaderNodeTree": stamps.PART, "CompositorNodeTree": stamps.COMPOSITOR_PART}
 
 
+def kind_for(tree_type: str) -> stamps.GroupKind:
+    """The stamp kind of a part's group in trees of ``tree_type``."""
+    return _KINDS[tree_type]
+
+
+def _name_of(key: str) -> str:
+    """The part's name in a features key (:attr:`Part.key`)."""
+    return key.split("|")[0]
+
+
 @dataclass(frozen=True)
 class Part:
     """A piece of an equation built as its own node group: ``build(g, *inputs)`` on any builder returns its output
@@ -114,17 +124,17 @@ def build(tree: bpy.types.NodeTree, part: Part, make_builder: Callable[..., Any]
         prune()
     g.layout()
     group_in.location = (-220.0, 0.0)
-    stamps.stamp(tree, _KINDS[tree.bl_idname], part.key)
+    stamps.stamp(tree, kind_for(tree.bl_idname), part.key)
 
 
 def ensure(part: Part, tree_type: str, make_builder: Callable[..., Any]) -> bpy.types.NodeTree:
     """``part``'s group for trees of ``tree_type``, built (:func:`build`) when missing or stale. A data-block of its
     name that is not this part's is renamed "... (not Atmos)" and left to its users."""
-    kind = _KINDS[tree_type]
+    kind = kind_for(tree_type)
     name = group_name(part, tree_type)
     tree = bpy.data.node_groups.get(name)
     if tree is not None and (tree.bl_idname != tree_type or stamps.kind_of(tree) != kind
-                             or str(tree.get(stamps.FEATURES_KEY, "")).split("|")[0] != part.name):
+                             or _name_of(str(tree.get(stamps.FEATURES_KEY, ""))) != part.name):
         tree.name = name + " (not Atmos)"
         tree = None
     if tree is None:
@@ -136,12 +146,18 @@ def ensure(part: Part, tree_type: str, make_builder: Callable[..., Any]) -> bpy.
 
 def part_of(key: str) -> Part | None:
     """The current part a group stamped with features ``key`` was built from (by name), or None (retired)."""
-    return PARTS.get(key.split("|")[0])
+    return PARTS.get(_name_of(key))
 
 
 def is_part(tree: bpy.types.NodeTree | None) -> bool:
     """True for a part's group."""
     return stamps.kind_of(tree) in stamps.PART_KINDS
+
+
+def instanced_part(node: bpy.types.Node) -> bpy.types.NodeTree | None:
+    """The part's group ``node`` instances, or None (not a group node, or a group that is not a part)."""
+    inner = getattr(node, "node_tree", None) if node.bl_idname in GROUP_NODES.values() else None
+    return inner if is_part(inner) else None
 
 
 def inline_count(tree: bpy.types.NodeTree) -> int:
@@ -154,8 +170,8 @@ def used_parts(tree: bpy.types.NodeTree) -> set:
     """The parts' groups ``tree`` instances, directly or through other parts."""
     found = set()
     for node in tree.nodes:
-        inner = getattr(node, "node_tree", None) if node.bl_idname in GROUP_NODES.values() else None
-        if is_part(inner) and inner not in found:
+        inner = instanced_part(node)
+        if inner is not None and inner not in found:
             found.add(inner)
             found |= used_parts(inner)
     return found
@@ -166,8 +182,8 @@ def inline_nodes(tree: bpy.types.NodeTree) -> list:
     instance its part's nodes (recursively) but their Group Input and Output; :func:`inline_count` is its length."""
     found = []
     for node in tree.nodes:
-        inner = getattr(node, "node_tree", None) if node.bl_idname in GROUP_NODES.values() else None
-        if is_part(inner):
+        inner = instanced_part(node)
+        if inner is not None:
             found += [n for n in inline_nodes(inner) if n.bl_idname not in ("NodeGroupInput", "NodeGroupOutput")]
         else:
             found.append(node)
