@@ -329,8 +329,11 @@ def apply_sky_state(scene) -> None:
 
 
 def note_counts(scene) -> bool:
-    """Record the file's material count and the scene's object count; True when they changed since the last call."""
-    counts = (len(bpy.data.materials), len(scene.objects))
+    """Record the file's material count, the scene's object count and its view layers' Material Overrides; True when
+    they changed since the last call."""
+    counts = (len(bpy.data.materials), len(scene.objects),
+              tuple(layer.material_override.as_pointer() if layer.material_override else 0
+                    for layer in scene.view_layers))
     changed = _last_counts.get(scene.name) != counts
     _last_counts[scene.name] = counts
     return changed

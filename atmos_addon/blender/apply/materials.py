@@ -80,9 +80,17 @@ def _is_editable(material) -> bool:
 
 
 def scene_materials(scene) -> tuple[list, list[str]]:
-    """The distinct materials used by the scene's objects (first-seen order) and the objects without one."""
+    """The distinct materials the scene renders with (first-seen order) and its objects that render without one.
+
+    Found in three places: the material slots of the scene's objects (hidden ones too: they may render); the Material
+    Override of each view layer, which every object of that layer renders with; and, where the file instances
+    geometry (:func:`instances_geometry`), the materials of the view layers' evaluated dependency graphs: a Geometry
+    Nodes *Set Material*, the objects of a collection instanced from outside the scene, a particle system's objects.
+    A view layer not evaluated yet (:meth:`bpy.types.ViewLayer.update`) has no graph to read; the enable evaluates
+    the first before it injects. An object counts as without material when no slot holds one, its evaluated geometry
+    has none and not every rendered view layer overrides its materials."""
     seen: dict[int, object] = {}
-    bare: list[str] = []
+    bare: list = []
     for obj in scene.objects:
         if obj.type not in GEOMETRY_TYPES:
             continue
@@ -96,8 +104,50 @@ def scene_materials(scene) -> tuple[list, list[str]]:
             if key not in seen:
                 seen[key] = material
         if not found:
-            bare.append(obj.name)
-    return list(seen.values()), bare
+            bare.append(obj)
+    layers = [layer for layer in scene.view_layers if layer.use] or list(scene.view_layers)
+    overrides = [layer.material_override for layer in layers]
+    for material in overrides:
+        if material is not None:
+            seen.setdefault(material.as_pointer(), material)
+    if layers and all(material is not None for material in overrides):
+        bare = []
+    if instances_geometry():
+        graphs = [layer.depsgraph for layer in layers]
+        for depsgraph in graphs:
+            for material in evaluated_materials(depsgraph):
+                seen.setdefault(material.as_pointer(), material)
+        bare = [obj for obj in bare if not any(_evaluated_material_count(obj, depsgraph) for depsgraph in graphs)]
+    return list(seen.values()), [obj.name for obj in bare]
+
+
+def instances_geometry() -> bool:
+    """True when the file holds something through which an object can render materials no slot of a scene's object
+    lists: a Geometry Nodes tree in use, a collection instanced by an object, or particles that render objects. A
+    few reads of the file's node groups, collections and particle settings (none of the 20 000 objects)."""
+    return (any(tree.users for tree in bpy.data.node_groups if tree.bl_idname == "GeometryNodeTree")
+            or any(collection.users_dupli_group for collection in bpy.data.collections)
+            or any(particles.users and particles.render_type in {"OBJECT", "COLLECTION"}
+                   for particles in bpy.data.particles))
+
+
+def evaluated_materials(depsgraph) -> list:
+    """The original surface materials among ``depsgraph``'s evaluated data-blocks (grease pencil's left out): what its
+    objects, their Geometry Nodes and their instances render with. 11-12 ms with 20 000 objects and 5000 materials
+    (5.2.3), where listing the slots takes 50 ms."""
+    found = []
+    for block in depsgraph.ids:
+        if block.id_type == "MATERIAL":
+            material = block.original
+            if not material.is_grease_pencil:
+                found.append(material)
+    return found
+
+
+def _evaluated_material_count(obj, depsgraph) -> int:
+    """How many materials ``obj``'s evaluated geometry in ``depsgraph`` holds (where the graph does not hold the object
+    Blender hands back the original, whose slots the caller found empty)."""
+    return sum(1 for slot in obj.evaluated_get(depsgraph).material_slots if slot.material is not None)
 
 
 def atmos_nodes(material) -> list:
