@@ -1,8 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Surfaces whose material no object's slot lists: a Geometry Nodes *Set Material*, the objects of a collection
-instanced from outside the scene, a view layer's Material Override. Until December 2026 Atmos looked only at the
-slots of the scene's objects, so these rendered with no haze at all (a scatter of rocks, an instanced asset, a clay
-render), and an object coloured by its Geometry Nodes was reported as having no material.
+instanced from outside the scene, a background set's objects, a view layer's Material Override. Until December 2026
+Atmos looked only at the slots of the scene's objects, so these rendered with no haze at all (a scatter of rocks, an
+instanced asset, a set scene, a clay render), and an object coloured by its Geometry Nodes was reported as having no
+material.
 
 Each scene starts from an empty factory file: a camera 2 m up looking north with a 20 degree field of view, a sun
 behind it, three emissive targets (radiance 0.5) 3 km away side by side. The expectation is the same scene with a
@@ -60,7 +61,8 @@ def _set_material_tree(material) -> bpy.types.NodeTree:
 def _scene(kind: str):
     """``slots``: a slot material on each target; ``instanced``: the first by its slot, the second by a Geometry
     Nodes modifier (no slot), the third in a collection the scene does not hold, instanced by an empty;
-    ``override``: no target has a material, the view layer overrides them all."""
+    ``set``: the first by its slot, the other two in the scene's background set; ``override``: no target has a
+    material, the view layer overrides them all."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     ru.make_camera(scene, location=(0.0, 0.0, 2.0), rotation_euler=(math.pi / 2.0, 0.0, 0.0),
@@ -83,6 +85,13 @@ def _scene(kind: str):
         instancer = bpy.data.objects.new("Assets instance", None)
         instancer.instance_type, instancer.instance_collection = "COLLECTION", assets
         scene.collection.objects.link(instancer)
+    elif kind == "set":
+        ru.make_plane(scene, "Target 0", _corners(0), grey[0])
+        backdrop = bpy.data.scenes.new("Backdrop")
+        for index in (1, 2):
+            backdrop.collection.objects.link(ru.make_plane(scene, f"Target {index}", _corners(index), grey[index]))
+            scene.collection.objects.unlink(backdrop.objects[f"Target {index}"])
+        scene.background_set = backdrop
     elif kind == "override":
         for index in range(3):
             ru.make_plane(scene, f"Target {index}", _corners(index), None)
@@ -112,11 +121,11 @@ def reference(addon):
     return _REFERENCE[0]
 
 
-@pytest.mark.parametrize("kind", ["instanced", "override"])
+@pytest.mark.parametrize("kind", ["instanced", "set", "override"])
 def test_surfaces_no_slot_lists_are_hazed_like_slot_materials(kind, reference):
     scene = _scene(kind)
     report = api.enable(scene, **OPTIONS)
-    names = {"instanced": {"Grey 0", "Grey 1", "Grey 2"}, "override": {"Grey 0"}}[kind]
+    names = {"override": {"Grey 0"}}.get(kind, {"Grey 0", "Grey 1", "Grey 2"})
     assert names <= set(report.managed)
     assert report.objects_without_material == []
     assert all(materials.is_injected(bpy.data.materials[name]) for name in names)

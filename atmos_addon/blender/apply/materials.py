@@ -84,8 +84,9 @@ def scene_materials(scene) -> tuple[list, list[str]]:
 
     Found in three places: the material slots of the scene's objects (hidden ones too: they may render); the Material
     Override of each view layer, which every object of that layer renders with; and, where the file instances
-    geometry (:func:`instances_geometry`), the materials of the view layers' evaluated dependency graphs: a Geometry
-    Nodes *Set Material*, the objects of a collection instanced from outside the scene, a particle system's objects.
+    geometry (:func:`instances_geometry`) or the scene has a background set, the materials of the view layers'
+    evaluated dependency graphs: a Geometry Nodes *Set Material*, the objects of a collection instanced from outside
+    the scene, a particle system's objects, the set scene's objects.
     A view layer not evaluated yet (:meth:`bpy.types.ViewLayer.update`) has no graph to read; the enable evaluates
     the first before it injects. An object counts as without material when no slot holds one, its evaluated geometry
     has none and not every rendered view layer overrides its materials."""
@@ -112,7 +113,7 @@ def scene_materials(scene) -> tuple[list, list[str]]:
             seen.setdefault(material.as_pointer(), material)
     if layers and all(material is not None for material in overrides):
         bare = []
-    if instances_geometry():
+    if instances_geometry() or scene.background_set is not None:   # a set scene's objects render too
         graphs = [layer.depsgraph for layer in layers]
         for depsgraph in graphs:
             for material in evaluated_materials(depsgraph):
