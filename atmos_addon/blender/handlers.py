@@ -16,7 +16,7 @@ import bpy
 from bpy.app.handlers import persistent
 
 from . import facts, group_integrity, migration, orchestrator, sun_bake, sync
-from .apply import materials, precise_tables
+from .apply import compositor, materials, precise_tables
 
 
 #: True while :func:`_evaluate_enabled_scenes` runs: the depsgraph handler waits for the re-sync that follows.
@@ -47,6 +47,8 @@ def on_depsgraph_update(scene, depsgraph) -> None:
     orchestrator.follow_key_tiles(scene, key_tiles)   # an animation that started or stopped: blend or not
     if edited:
         materials.follow_edits(edited)   # a surface Cycles folds away stays opaque
+    if depsgraph.id_type_updated("SCENE"):
+        compositor.follow_shown_view_layer(scene)   # a view layer switched on or off: the shown one composited
     if orchestrator.note_counts(scene):
         orchestrator.pick_up_new_materials(scene)
 

@@ -150,6 +150,30 @@ def _output_input(tree, state: dict):
     return output.inputs["Image"]
 
 
+def shown_view_layer(scene):
+    """The view layer whose image ``scene``'s render shows when no compositor picks one: with *Render Single Layer*,
+    the window's view layer (the context's, where the context shows ``scene``), else the first that renders (the
+    first of all when none does). A Render Layers node is made for this one: a new node reads the first view layer,
+    and a scene whose first layer is switched off (an artist's "Beauty" layer beside the default one) rendered black
+    with Atmos until December 2026."""
+    context_layer = getattr(bpy.context, "view_layer", None)
+    if scene.render.use_single_layer and getattr(bpy.context, "scene", None) == scene and context_layer is not None:
+        return context_layer
+    return next((layer for layer in scene.view_layers if layer.use), scene.view_layers[0])
+
+
+def follow_shown_view_layer(scene) -> None:
+    """Point the Render Layers node Atmos made at :func:`shown_view_layer` when the scene's layers changed since (a
+    refresh, an enable); the user's own Render Layers nodes are theirs."""
+    tree = current_tree(scene)
+    if tree is None:
+        return
+    name = shown_view_layer(scene).name
+    for node in tree.nodes:
+        if node.get(TAG) and node.bl_idname == "CompositorNodeRLayers" and node.layer != name:
+            node.layer = name
+
+
 def _render_layer_nodes(tree, scene) -> list:
     return [
         node for node in tree.nodes
@@ -258,6 +282,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
     if installed == evaluation and not value_aov_leads(scene, scene[STATE_KEY].to_dict()):
         if evaluation == "PER_PIXEL":
             ensure_per_pixel_group(features)
+        follow_shown_view_layer(scene)
         return messages  # already installed: idempotent
     if installed is not None:
         uninstall(scene)
@@ -275,6 +300,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
     if not layers:
         layer_node = _tag(tree.nodes.new("CompositorNodeRLayers"), "Atmos Render Layers")
         layer_node.scene = scene
+        layer_node.layer = shown_view_layer(scene).name
         layer_node.location = (-400, 0)
         layers = [layer_node]
     for index, layer_node in enumerate(layers):
