@@ -27,8 +27,9 @@ CAMERA_SAMPLES = 5
 
 
 def _camera_heights(scene, camera) -> list[float]:
-    """World z of the camera (scene units) at the current frame, or over the frame range when it moves."""
-    if not scene_reading.moves_over_time(camera):
+    """World z of the camera (scene units) at the current frame, or over the frame range when it moves (the camera a
+    marker switches to at each sampled frame: ``scene.camera`` then)."""
+    if not scene_reading.camera_moves(scene):
         return [camera.matrix_world.translation.z]
     current, subframe = scene.frame_current, scene.frame_subframe
     start, end = scene.frame_start, scene.frame_end
@@ -37,7 +38,7 @@ def _camera_heights(scene, camera) -> list[float]:
     try:
         for frame in frames:
             scene.frame_set(frame)
-            heights.append(camera.matrix_world.translation.z)
+            heights.append((scene.camera or camera).matrix_world.translation.z)
     finally:
         scene.frame_set(current, subframe=subframe)
     return heights

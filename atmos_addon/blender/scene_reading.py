@@ -114,6 +114,18 @@ def moves_over_time(obj) -> bool:
     return False
 
 
+def switches_camera(scene) -> bool:
+    """True if a timeline marker binds a camera other than the scene's: the render switches to it at the marker's
+    frame (a cut), so the camera the tables are measured from changes over time."""
+    return any(marker.camera is not None and marker.camera != scene.camera for marker in scene.timeline_markers)
+
+
+def camera_moves(scene) -> bool:
+    """True if the scene's camera can change place over time: it moves (:func:`moves_over_time`) or a marker switches
+    to another one (:func:`switches_camera`)."""
+    return moves_over_time(scene.camera) or switches_camera(scene)
+
+
 def is_sun_animated(scene) -> bool:
     """True if the sun lamp's direction can change over time: it, or a parent, is animated or constrained."""
     return moves_over_time(sun_object(scene))

@@ -573,3 +573,107 @@ def test_the_api_points_the_sun_and_applies_presets_and_refuses_bad_input_unchan
     api.set_preset(scene, "sunset")   # sets the sun's elevation, keeps its azimuth
     assert np.allclose(sun_lamp.sun_angles(scene), (math.radians(2.0), math.radians(120.0)), atol=1e-6)
     assert scene.atmos.enabled
+
+
+def test_a_scene_whose_first_view_layer_is_off_renders_its_shown_layer_hazed():
+    """An artist's "Beauty" layer beside the default one, switched off: Atmos's Render Layers node reads the layer the
+    render shows (it read the first, and the render came out black), and follows when the layers change."""
+    from atmos_addon import api
+    from atmos_addon.blender.apply import compositor
+
+    def scene_with_target():
+        scene = new_user_scene(12, 6)
+        ru.set_engine(scene, "CYCLES", width=12, height=6)
+        target(scene, "Target", ru.emission_material("Grey", (0.5, 0.5, 0.5)), 3000.0, 0.0, 40.0)
+        return scene
+
+    scene = scene_with_target()
+    api.enable(scene, preset="clear", sun_elevation_deg=30.0, sun_azimuth_deg=180.0)
+    reference = ru.render_to_array(scene)[..., :3]
+    assert np.max(np.abs(reference - 0.5)) > 0.01   # hazed
+
+    scene = scene_with_target()
+    scene.view_layers.new("Beauty")
+    scene.view_layers[0].use = False
+    api.enable(scene, preset="clear", sun_elevation_deg=30.0, sun_azimuth_deg=180.0)
+    assert compositor.shown_view_layer(scene).name == "Beauty"
+    assert np.max(np.abs(ru.render_to_array(scene)[..., :3] - reference)) <= 1e-4
+
+    scene.view_layers[0].use, scene.view_layers["Beauty"].use = True, False   # the layers swapped
+    scene.view_layers[0].update()   # the depsgraph handler follows, as after a click in the interface
+    assert compositor.shown_view_layer(scene).name == scene.view_layers[0].name
+    assert np.max(np.abs(ru.render_to_array(scene)[..., :3] - reference)) <= 1e-4
+
+
+FRAMES_FARM_SCRIPT = textwrap.dedent("""
+    import json, sys
+    import bpy
+    import numpy as np
+    bpy.ops.wm.open_mainfile(filepath=sys.argv[1])
+    scene = bpy.context.scene
+    cameras = {}
+    for frame in (1, 2):
+        scene.frame_set(frame)
+        cameras[frame] = scene.camera.name
+        settings = scene.render.image_settings
+        if "media_type" in settings.bl_rna.properties:
+            settings.media_type = "IMAGE"
+        settings.file_format, settings.color_depth, settings.color_mode = "OPEN_EXR", "32", "RGB"
+        scene.render.filepath = f"{sys.argv[2]}_{frame}.exr"
+        bpy.ops.render.render(write_still=True)
+        image = bpy.data.images.load(scene.render.filepath, check_existing=False)
+        width, height = image.size
+        pixels = np.empty(width * height * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+        np.save(f"{sys.argv[2]}_{frame}.npy", pixels.reshape(height, width, 4)[::-1, :, :3])
+    print(json.dumps({"addon_loaded": "atmos_addon" in sys.modules, "cameras": cameras}))
+""")
+
+
+@pytest.mark.parametrize("quality", ["FAST", "PRECISE"])
+def test_a_cut_between_cameras_renders_each_shot_with_its_own_table(tmp_path, quality):
+    """Timeline markers bound to cameras cut from a camera 2 m up (frame 1) to one 1500 m up (frame 2). The Precise
+    table is measured from the camera, so the cut needs a table per camera: the file Atmos writes renders each frame on
+    a farm without the add-on as the scene with that camera alone does (until December 2026 one tile, the camera's
+    at the frame the file was saved, served both shots). Fast, whose haze needs no table, the same."""
+    from atmos_addon import api
+
+    def scene_with(cameras: str):
+        scene = new_user_scene(16, 8)
+        ru.set_engine(scene, "CYCLES", width=16, height=8)
+        low = scene.camera
+        high = ru.make_camera(scene, location=(0.0, 0.0, 1500.0), rotation_euler=(math.pi / 2.0, 0.0, 0.0),
+                              fov_rad=FOV, clip_start=0.1, clip_end=100_000.0)
+        target(scene, "Wall", ru.emission_material("Grey", (0.5, 0.5, 0.5)), 8000.0, 0.0, 40.0, top_deg=20.0,
+               bottom_deg=20.0)
+        scene.frame_start, scene.frame_end = 1, 2
+        if cameras == "cut":
+            scene.camera = low
+            scene.timeline_markers.new("Ground", frame=1).camera = low
+            scene.timeline_markers.new("Air", frame=2).camera = high
+        else:
+            scene.camera = low if cameras == "low" else high
+        scene.frame_set(1)
+        api.enable(scene, preset="clear", sun_elevation_deg=20.0, sun_azimuth_deg=180.0, quality=quality)
+        return scene
+
+    references = {}
+    for frame, cameras in ((1, "low"), (2, "high")):
+        references[frame] = ru.render_to_array(scene_with(cameras))[..., :3]
+    assert np.max(np.abs(references[1] - references[2])) > 0.01   # the two shots differ
+    scene = scene_with("cut")
+    scene.frame_set(2)   # saved at the second shot
+    applied = tmp_path / "cut.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(applied))
+    script = tmp_path / "farm.py"
+    script.write_text(FRAMES_FARM_SCRIPT)
+    env = {key: value for key, value in os.environ.items() if not key.startswith(("PYTHON", "BLENDER_"))}
+    env["HOME"] = str(tmp_path)
+    result = subprocess.run([sys.executable, "-I", str(script), str(applied), str(tmp_path / "farm")],
+                            cwd=str(tmp_path), env=env, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    summary = json.loads(result.stdout.strip().splitlines()[-1])
+    assert summary == {"addon_loaded": False, "cameras": {"1": "Test Camera", "2": "Test Camera.001"}}
+    for frame in (1, 2):
+        farm = np.load(str(tmp_path / f"farm_{frame}.npy"))
+        assert np.max(np.abs(farm - references[frame])) <= 1e-4, frame

@@ -321,8 +321,8 @@ def uses_precise(scene) -> bool:
 
 def moves(scene) -> bool:
     """True when the camera or the sun moves over time (key tiles along their path, when altitude or elevation
-    changes)."""
-    return scene_reading.moves_over_time(scene.camera) or scene_reading.is_sun_animated(scene)
+    changes), a marker's switch to another camera included."""
+    return scene_reading.camera_moves(scene) or scene_reading.is_sun_animated(scene)
 
 
 def follow(scene) -> None:
