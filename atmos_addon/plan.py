@@ -87,6 +87,7 @@ class SceneFacts:
     clip_ratio: float | None = None   #: the scene camera's clip end / clip start (None: no camera)
     clip_end_m: float | None = None   #: the scene camera's clip end, m
     key_tiles: int = 1                #: key tiles the scene's Precise table holds (> 1: a camera or sun that moves)
+    animated_settings: tuple[str, ...] = ()  #: the Atmos settings keys or drivers change over time (interface names)
 
     def __post_init__(self) -> None:
         if self.render_mode not in MODES:
@@ -184,13 +185,23 @@ def clip_note(facts: SceneFacts) -> str | None:
             "Clip End)")
 
 
+def animated_settings_note(facts: SceneFacts) -> str | None:
+    """The warning for Atmos settings that are keyframed or driven, or None. The shader parameters, the sun lamp's
+    drivers and the Precise tables are written when a setting is edited, not on every frame (a farm renders without
+    the add-on), so a key changes nothing the render reads."""
+    if not facts.animated_settings:
+        return None
+    return (f"Keyframed or driven Atmos settings ({', '.join(facts.animated_settings)}) are not followed: every frame "
+            "renders with the values last applied (animate the sun lamp or the camera, or render each value as a shot)")
+
+
 def plan_for(facts: SceneFacts) -> Plan:
     """The :class:`Plan` for ``facts`` (module docstring: the rules)."""
     mode, mode_note = mode_for(facts)
     level, level_note = level_for(facts, mode)
     aov_modes = {m for m in (mode, *facts.other_modes) if m in AOV_MODES}
     precise = level == "precise"
-    notes = tuple(note for note in (mode_note, level_note, clip_note(facts)) if note)
+    notes = tuple(note for note in (mode_note, level_note, clip_note(facts), animated_settings_note(facts)) if note)
     return Plan(mode=mode, level=level, mie=facts.mie, absorption=facts.absorption, sky=facts.sky,
                 sky_level="precise" if precise else "fast", sky_ground=facts.sky_ground,
                 lighting="sky" if precise else "table", sun_lamp=facts.sun_lamp, tables=precise,

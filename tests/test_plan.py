@@ -81,6 +81,12 @@ def test_the_eevee_clip_range_note():
     assert plan_for(replace(far, clip_ratio=None)).notes == ()
 
 
+def test_the_animated_settings_note():
+    (note,) = plan_for(SceneFacts(animated_settings=("Mie Scattering", "Visibility"))).notes
+    assert note.startswith("Keyframed or driven Atmos settings (Mie Scattering, Visibility) are not followed")
+    assert plan_for(SceneFacts()).notes == ()
+
+
 def test_features_and_keys():
     assert plan_for(SceneFacts(quality="PRECISE", mie=False)).aerial_key == "rayleigh+abs+precise"
     with pytest.raises(ValueError, match="quality"):   # retired in December 2026 (files upgrade: migration)

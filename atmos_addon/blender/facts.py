@@ -28,7 +28,30 @@ def _own_facts(scene, other_modes: tuple[str, ...] = ()) -> SceneFacts:
         absorption=any(v > 0.0 for v in settings.mie_absorption_per_km),
         sky=bool(settings.sky_enabled), sky_ground=settings.sky_ground, sun_lamp=bool(settings.drive_sun_lamp),
         multiple_scattering=bool(settings.multiple_scattering), other_modes=other_modes, clip_ratio=clip_ratio,
-        clip_end_m=clip_end_m, key_tiles=max(int(scene.get(KEY_TILES, 1)), 1))
+        clip_end_m=clip_end_m, key_tiles=max(int(scene.get(KEY_TILES, 1)), 1),
+        animated_settings=animated_settings(scene))
+
+
+def animated_settings(scene) -> tuple[str, ...]:
+    """The interface names of ``scene``'s Atmos settings that keys (its action, its NLA strips) or drivers change
+    over time, in the order found. Atmos's own keys and drivers are on other paths (the scene's custom properties)."""
+    animation = scene.animation_data
+    if animation is None:
+        return ()
+    fcurves_of = groups().parameters.fcurves_of
+    actions = [animation.action] + [strip.action for track in animation.nla_tracks for strip in track.strips]
+    paths = [curve.data_path for curve in animation.drivers]
+    paths += [curve.data_path for action in actions if action is not None for curve in fcurves_of(action)]
+    properties = scene.atmos.bl_rna.properties
+    names: list[str] = []
+    for path in paths:
+        if path.startswith("atmos."):
+            identifier = path[len("atmos."):].split("[")[0].split(".")[0]
+            prop = properties.get(identifier)
+            name = prop.name if prop is not None else identifier
+            if name not in names:
+                names.append(name)
+    return tuple(names)
 
 
 def other_modes(scene) -> tuple[str, ...]:

@@ -474,6 +474,31 @@ def test_a_clip_range_that_flattens_eevees_sky_is_reported(tmp_path):
     assert facts.plan_of(scene).notes == ()
 
 
+def test_keyframed_atmos_settings_are_reported(tmp_path):
+    """A key on an Atmos setting changes nothing the render reads (the parameters and tables are written on edits, a
+    farm renders without the add-on): the report and the CLI say so once; Atmos's own keys (a climbing camera's key
+    tiles) and a keyed camera raise nothing."""
+    scene = new_user_scene(16, 8)
+    scene.frame_start, scene.frame_end = 1, 3
+    scene.camera.keyframe_insert("location", frame=1)
+    scene.camera.location.z = 300.0
+    scene.camera.keyframe_insert("location", frame=3)
+    report = atmos_addon.api.enable(scene, preset="clear")
+    assert scene.get(facts.KEY_TILES, 1) > 1 and facts.plan_of(scene).notes == (), report.messages
+    scene.atmos.keyframe_insert("mie_scattering_per_km", frame=1)
+    report = atmos_addon.api.enable(scene)
+    warnings = [line for line in report.messages if "are not followed" in line]
+    name = scene.atmos.bl_rna.properties["mie_scattering_per_km"].name
+    assert len(warnings) == 1 and f"Atmos settings ({name})" in warnings[0], report.messages
+    blend = tmp_path / "keyed.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    proc = run_cli("apply", str(blend), "--output", str(tmp_path / "out.blend"), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert sum("are not followed" in line for line in proc.stderr.splitlines()) == 1
+    scene.atmos.keyframe_delete("mie_scattering_per_km", frame=1)
+    assert facts.plan_of(scene).notes == ()
+
+
 def test_atmos_never_sets_a_clip_range_eevee_cannot_render():
     """In-Render raises the camera's clip end to its haze domes, but not past Eevee's limit (the file may be
     rendered with Eevee later): with a 1 mm clip start it stops at 16 km and says so."""

@@ -26,7 +26,7 @@ import atmos_addon
 from atmos_addon import plan as plan_module
 from atmos_addon import presets
 from atmos_addon.blender.ui import contact_sheet, preset_ops, panel as ui_panel
-from atmos_addon.blender import orchestrator, registration, scene_reading, settings_io
+from atmos_addon.blender import facts, orchestrator, registration, scene_reading, settings_io
 from atmos_addon.physics.visibility import extinction_550_per_m
 
 from render_utils import EEVEE_ENGINE, ENGINES, make_camera, make_plane, render_to_array, set_engine
@@ -438,10 +438,40 @@ def test_the_panel_says_why_the_mode_differs_and_when_eevee_shows_a_flat_sky(use
     scene.cycles.shading_system = False
     scene.render.engine = EEVEE_ENGINE
     camera.data.clip_end = 5.0e6
-    assert any(text and "Eevee renders the sky one flat colour: raise Clip Start to at least 0.312 m" in text
-               for text in labels())
+    assert "Eevee renders the sky one flat colour: raise Clip Start to at least 0.312 m" in " ".join(
+        text for text in labels() if text)   # a note is drawn over several lines (wrapped to the panel's width)
     camera.data.clip_start = 1.0
     assert not any(text and "Clip Start" in text for text in labels())
+
+
+def test_notes_are_wrapped_to_the_default_width(user_presets):
+    """Every note the panel can show (OSL, Eevee's clip range, keyed settings) is drawn whole over lines that each fit
+    the default width (Blender's font code, ``blf``), where one label cut it ("Open Shading Language is on: Cy...")."""
+    import blf
+
+    scene = bpy.context.scene
+    add_sun(scene)
+    camera = make_camera(scene, clip_start=0.1, clip_end=5.0e6)
+    scene.render.engine = EEVEE_ENGINE
+    scene.atmos.keyframe_insert("mie_scattering_per_km", frame=1)
+    notes = facts.plan_of(scene).notes
+    assert any(note.startswith("Camera Clip End") for note in notes)
+    assert any(note.startswith("Keyframed or driven") for note in notes)
+    scene.render.engine = "CYCLES"
+    scene.cycles.shading_system = True
+    notes += (plan_module.NOTE_OSL,)
+    blf.size(0, ui_panel.UI_FONT_PX)
+    assert blf.dimensions(0, plan_module.NOTE_OSL)[0] > ui_panel.LINE_WIDTH_LIMIT_PX   # the test can fail
+    drawn = [call[1] for call in draw_everything(scene) if call[0] == "label" and call[1]]
+    scene.render.engine = EEVEE_ENGINE
+    scene.cycles.shading_system = False
+    drawn += [call[1] for call in draw_everything(scene) if call[0] == "label" and call[1]]
+    for note in notes:
+        lines = ui_panel.wrapped(note)
+        assert " ".join(lines) == note
+        assert all(blf.dimensions(0, line)[0] <= ui_panel.LINE_WIDTH_LIMIT_PX for line in lines), lines
+        assert all(line in drawn for line in lines), (note, drawn)
+    camera.data.clip_start = 1.0
 
 
 def test_apply_preset_sets_settings_within_float32_and_the_sun(user_presets):

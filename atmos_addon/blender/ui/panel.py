@@ -121,6 +121,26 @@ def _split(layout):
 LABEL_WIDTH_LIMIT_PX = 90
 #: Widest full-width line with an icon (the main panel's notes) the default width shows uncut, px.
 LINE_WIDTH_LIMIT_PX = 230
+#: Interface font size, px at scale 1, that :func:`wrapped` measures with.
+UI_FONT_PX = 11
+
+
+def wrapped(text: str, limit_px: float = LINE_WIDTH_LIMIT_PX) -> list[str]:
+    """``text`` as lines of whole words, each at most ``limit_px`` wide in Blender's interface font (``blf``): a note
+    longer than the panel is drawn over several labels instead of being cut ("Open Shading Language is on: Cy...").
+    A single word wider than the limit stays whole on its own line."""
+    import blf
+
+    blf.size(0, UI_FONT_PX)
+    lines: list[str] = []
+    for word in text.split():
+        if lines and blf.dimensions(0, f"{lines[-1]} {word}")[0] <= limit_px:
+            lines[-1] = f"{lines[-1]} {word}"
+        else:
+            lines.append(word)
+    return lines
+
+
 #: The main panel's line while the effect is off.
 OFF_LINE = "Off: tick the box to add the atmosphere"
 
@@ -179,7 +199,10 @@ class ATMOS_PT_atmosphere(_WorldPanel, bpy.types.Panel):
         plan = facts.plan_of(context.scene)
         for note in plan.notes:
             if note != NOTE_IN_RENDER_FAST:   # that one is part of the quality status line
-                layout.label(text=note, icon="ERROR" if note.startswith("Camera Clip End") else "INFO")
+                icon = "ERROR" if note.startswith(("Camera Clip End", "Keyframed or driven")) else "INFO"
+                column = layout.column(align=True)
+                for index, line in enumerate(wrapped(note)):
+                    column.label(text=line, icon=icon if index == 0 else "BLANK1")
         if not settings.enabled:
             layout.label(text=OFF_LINE, icon="INFO")
         elif not (plan.viewport == VIEWPORT_EEVEE_HINT and viewport_compositor_always(context)):
