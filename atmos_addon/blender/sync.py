@@ -143,6 +143,8 @@ def _show_sunlight(scene, lamp, values, *, enabled: bool, driven: bool) -> None:
         settings["sun_strength_display"] = strength
     if lamp is not None and enabled and settings.drive_sun_lamp:
         sun_lamp.drive_lamp(scene, lamp, colour, strength, angle, driven=driven)
+    elif enabled and not settings.drive_sun_lamp:
+        sun_lamp.release_lamp(scene)   # the lamp's own light back
 
 
 def lamp_matrix_key(lamp) -> tuple:

@@ -129,11 +129,15 @@ def test_the_drivers_follow_the_lamp_setting_and_the_drive_switch(addon):
     scene.atmos.sun_object = second
     bpy.context.view_layer.update()
     assert not _driven(first.data) and _driven(second.data) == LIGHT_PATHS
+    # the lamp left has its own light back (it kept Atmos's until December 2026, after a disable too)
+    assert tuple(first.data.color) == pytest.approx((0.9, 0.8, 0.7)) and first.data.energy == pytest.approx(3.0)
     assert sun_drivers.state(scene) == {"lamp": second.name, "light": second.data.name, "table": table}
     np.testing.assert_allclose(scene["atmos_sun_direction"], second.matrix_world.col[2][:3], atol=1e-6)
+    assert second.data.energy != pytest.approx(5.0)   # driven
     scene.atmos.drive_sun_lamp = False
     bpy.context.view_layer.update()
     assert not _driven(second.data) and _driven(scene) >= SUN_PATHS
+    assert tuple(second.data.color) == pytest.approx((1.0, 1.0, 1.0)) and second.data.energy == pytest.approx(5.0)
     scene.atmos.drive_sun_lamp = True
     assert _driven(second.data) == LIGHT_PATHS
     scene.atmos.mie_scattering_per_km = (0.2, 0.2, 0.2)   # a thicker haze: a new E_sun table
@@ -142,6 +146,11 @@ def test_the_drivers_follow_the_lamp_setting_and_the_drive_switch(addon):
     e_sun = sun_irradiance_ground(math.radians(10.0), scene_reading.atmosphere_of(scene), 0.0,
                                   0.5 * scene.atmos.sun_angular_diameter)
     np.testing.assert_allclose(scene["atmos_sun_irradiance"], e_sun, rtol=2e-3)
+    orchestrator.disable_effect(scene)
+    bpy.context.view_layer.update()
+    for lamp, colour, energy in ((first, (0.9, 0.8, 0.7), 3.0), (second, (1.0, 1.0, 1.0), 5.0)):
+        assert not _driven(lamp.data)
+        assert tuple(lamp.data.color) == pytest.approx(colour) and lamp.data.energy == pytest.approx(energy)
 
 
 def test_a_file_with_an_older_atmos_s_per_frame_sun_keys_loses_them(addon, tmp_path: Path):

@@ -100,6 +100,7 @@ def drive_lamp(scene: bpy.types.Scene, lamp: bpy.types.Object, colour, strength:
     light = lamp.data
     state = dict(scene.get(LAMP_STATE_KEY, {}))
     if state.get("lamp") != lamp.name:
+        _put_back(state)   # another lamp picked: the one driven until now gets its own values back
         state.update(lamp=lamp.name, color=tuple(light.color), energy=float(light.energy), angle=float(light.angle))
         scene[LAMP_STATE_KEY] = state
     wrote = False
@@ -111,6 +112,34 @@ def drive_lamp(scene: bpy.types.Scene, lamp: bpy.types.Object, colour, strength:
     return wrote
 
 
+def _put_back(state) -> None:
+    """Give the lamp ``state`` records (the one Atmos drives) its own colour, strength and angle back; nothing for a
+    lamp Atmos created or one that is gone. Until December 2026 a lamp the user replaced with another in the Sun
+    field kept Atmos's values, after a disable too."""
+    name = state.get("lamp")
+    lamp = bpy.data.objects.get(name) if name else None
+    if lamp is not None and lamp.type == "LIGHT" and lamp.name != state.get("created"):
+        lamp.data.color = tuple(state["color"])
+        lamp.data.energy = float(state["energy"])
+        lamp.data.angle = float(state["angle"])
+
+
+def release_lamp(scene: bpy.types.Scene) -> None:
+    """*Drive Sun Lamp* turned off: the lamp Atmos drove gets its own colour, strength and angle back and is no longer
+    recorded (a lamp Atmos created stays recorded, for the disable to remove)."""
+    state = scene.get(LAMP_STATE_KEY)
+    if state is None or "lamp" not in state:
+        return
+    state = dict(state)
+    _put_back(state)
+    for key in ("lamp", "color", "energy", "angle"):
+        state.pop(key, None)
+    if state:
+        scene[LAMP_STATE_KEY] = state
+    else:
+        del scene[LAMP_STATE_KEY]
+
+
 def restore_lamp(scene: bpy.types.Scene) -> None:
     """Undo what enabling did to the sun lamp: its own colour/strength/angle back, or remove a lamp we created (the
     baked keys are :func:`.sun_bake.clear_baked_keys`')."""
@@ -118,11 +147,7 @@ def restore_lamp(scene: bpy.types.Scene) -> None:
     if state is None:
         return
     created = state.get("created")
-    lamp = bpy.data.objects.get(state.get("lamp", "")) if "lamp" in state else None
-    if lamp is not None and lamp.type == "LIGHT" and lamp.name != created:
-        lamp.data.color = tuple(state["color"])
-        lamp.data.energy = float(state["energy"])
-        lamp.data.angle = float(state["angle"])
+    _put_back(state)
     if created and created in bpy.data.objects:
         obj = bpy.data.objects[created]
         data = obj.data
