@@ -702,3 +702,39 @@ def test_a_cut_between_cameras_renders_each_shot_with_its_own_table(tmp_path, qu
     for frame in (1, 2):
         farm = np.load(str(tmp_path / f"farm_{frame}.npy"))
         assert np.max(np.abs(farm - references[frame])) <= 1e-4, frame
+
+
+def test_a_world_shared_with_a_scene_without_atmos_keeps_rendering_there():
+    """Two scenes render with one world (a file's default "World" usually is): Atmos's sky reads its parameters from
+    the scene, so in the scene without Atmos it rendered black (until December 2026). The sky now goes into a copy of
+    the world for the scene that enables it; the other renders as before, and a disable gives the scene its world
+    back and removes the copy. A second scene that enables Atmos in its turn gets the sky in the world it has."""
+    from atmos_addon import api
+    from atmos_addon.blender.apply import world as world_applier
+
+    first = new_user_scene(8, 8)
+    ru.set_engine(first, "CYCLES", width=8, height=8)
+    shared = bpy.data.worlds.new("Shared")
+    ru.set_use_nodes(shared, True)
+    shared.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.3, 0.4, 1.0)
+    first.world = shared
+    second = bpy.data.scenes.new("Second")
+    ru.make_camera(second, location=(0.0, 0.0, 2.0), rotation_euler=(math.pi / 2.0, 0.0, 0.0), fov_rad=FOV)
+    ru.set_engine(second, "CYCLES", width=8, height=8)
+    second.world = shared
+    before = ru.render_to_array(second)[..., :3]
+    assert np.allclose(before, (0.2, 0.3, 0.4), atol=0.01)
+
+    report = api.enable(first, preset="clear")
+    assert first.world != shared and first.world.name.startswith("Shared")
+    assert any("a copy of 'Shared'" in line and "'Second'" in line for line in report.messages), report.messages
+    assert world_applier.tagged_nodes(first.world) and not world_applier.tagged_nodes(shared)
+    assert np.max(np.abs(ru.render_to_array(second)[..., :3] - before)) <= 1e-6
+    api.enable(second, preset="clear")   # both with Atmos: the second scene's sky in its own world
+    assert second.world == shared and world_applier.tagged_nodes(shared)
+    api.disable(second)
+    copy_name = first.world.name
+    api.disable(first)
+    assert first.world == shared and second.world == shared
+    assert copy_name not in bpy.data.worlds and not world_applier.tagged_nodes(shared)
+    assert np.max(np.abs(ru.render_to_array(second)[..., :3] - before)) <= 1e-6

@@ -146,11 +146,18 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
             _add_lighting_branch(world.node_tree, features, background)
         return f"Sky: in world '{world.name}'"
     state: dict = {}
+    keeping = sharing_scenes(scene, world)
     if world is None:
         world = bpy.data.worlds.new(CREATED_WORLD_NAME)
         scene.world = world
         state["created_world"] = world.name
     else:
+        if keeping:   # the sky goes into a copy: the other scenes keep the world they render with
+            original = world
+            world = original.copy()
+            world.name = f"{original.name} (Atmos)"
+            scene.world = world
+            state["copied_from"] = original.name
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)
             state["use_nodes"] = bool(world.use_nodes)
@@ -191,7 +198,20 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
     registry.remove_unused((stamps.SKY_LIGHTING,))   # that of a world deleted since: the new one takes its name
     _add_lighting_branch(tree, features, background)
     scene[STATE_KEY] = state
+    if "copied_from" in state:
+        names = ", ".join(f"'{other.name}'" for other in keeping)
+        return (f"Sky: in world '{world.name}', a copy of '{state['copied_from']}', which scene(s) {names} keep "
+                "(they share it and have no Atmos sky)")
     return f"Sky: in world '{world.name}'" + (" (created)" if "created_world" in state else "")
+
+
+def sharing_scenes(scene: bpy.types.Scene, world: bpy.types.World | None) -> list:
+    """The other scenes that render with ``world`` and have no Atmos sky in it: the sky would reach them without the
+    parameters it reads (their world rendered black, until December 2026), so :func:`install_sky` puts it in a copy
+    of ``world`` for ``scene``."""
+    if world is None:
+        return []
+    return [other for other in bpy.data.scenes if other != scene and other.world == world and STATE_KEY not in other]
 
 
 def uninstall_sky(scene: bpy.types.Scene) -> None:
@@ -202,6 +222,13 @@ def uninstall_sky(scene: bpy.types.Scene) -> None:
     state = state.to_dict() if hasattr(state, "to_dict") else dict(state)
     world = bpy.data.worlds.get(state.get("world", ""))
     created = state.get("created_world")
+    copied_from = state.get("copied_from")
+    if world is not None and copied_from is not None:   # the scene's own copy: the scene gets the original back
+        if scene.world == world:
+            scene.world = bpy.data.worlds.get(copied_from)
+        if world.users == 0:
+            bpy.data.worlds.remove(world)
+            world = None
     if world is not None and created == world.name:
         if scene.world == world:
             scene.world = None
