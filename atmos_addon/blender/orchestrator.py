@@ -187,6 +187,8 @@ def _ensure_groups(scene) -> None:
     group = material_group(scene)
     if plan.compositor is not None and bpy.data.node_groups.get(materials.SURFACE_GROUP) is not None:
         materials.ensure_surface_group(group, plan.surface_modes)   # the materials' group, once they have it
+    if plan.compositor is not None:
+        compositor.link_alpha(scene)   # a group node of a file saved before the composite read the render's alpha
     if plan.sky:
         sky_group(scene)
         world.update_sky_lighting(scene, facts.sky_features(plan))

@@ -2,10 +2,15 @@
 """The "Atmos Aerial Composite" compositor group: the per-pixel combination of the Compositor mode's AOVs.
 
 Per pixel the materials leave three AOV sums: ``T = sum a_i T_i``, ``L = sum a_i L_i`` and the coverage
-``C = sum a_i`` over the surfaces that wrote (alpha a_i, 1 for opaque surfaces, averaged over the pixel's samples):
+``C = sum a_i`` over the surfaces that wrote (alpha a_i, 1 for opaque surfaces, averaged over the pixel's samples).
+The render's alpha A bounds the coverage: a holdout object (a collection set to Holdout in the view layer) is a hole
+of alpha 0 whose material still writes its AOVs (until December 2026 its hole got the haze, RGB with alpha 0):
 
-    k = max(C, 1)
-    out = Image * (T + max(1 - C, 0)) / k + L / k
+    C' = min(C, A),  w = C' / C  (0 where C = 0),  k = max(C', 1)
+    out = Image * (w T + max(1 - C', 0)) / k + w L / k
+
+With every pixel's alpha 1 (an opaque film) and no holdout, C' = C: the composite as before. The Alpha input is 1
+where nothing feeds it (a group node of a file saved before it).
 
 (:mod:`atmos_addon.blender.apply.compositor` says what each case gives). Blender 5.0 composites with the shader
 nodes (Math, Mix); 4.5 has compositor nodes of its own (Math, MixRGB).
@@ -53,19 +58,47 @@ def _math(nodes, operation: str, location, *, clamp: bool = False):
 #: The group's interface: (name, in/out, socket type).
 INTERFACE = (("Image", "INPUT", "NodeSocketColor"), ("Transmittance", "INPUT", "NodeSocketColor"),
              ("Inscattering", "INPUT", "NodeSocketColor"), ("Coverage", "INPUT", "NodeSocketFloat"),
-             ("Image", "OUTPUT", "NodeSocketColor"))
+             ("Alpha", "INPUT", "NodeSocketFloat"), ("Image", "OUTPUT", "NodeSocketColor"))
+#: Coverage below which a pixel counts as uncovered when its weight w = C' / C is formed (a divide by 0 guard).
+_TINY_COVERAGE = 1e-20
 
 
 def _ensure_interface(tree) -> None:
-    """Give ``tree`` the group's interface, keeping it when it is already there: a rebuilt group's sockets, and so
-    the links of the compositor's group nodes to them, survive."""
-    present = [(item.name, item.in_out, item.socket_type) for item in tree.interface.items_tree
-               if item.item_type == "SOCKET"]
+    """Give ``tree`` the group's interface, keeping every socket it already has of it: a rebuilt group's sockets, and
+    so the links of the compositor's group nodes to them, survive (a group of an earlier version gains its missing
+    inputs, the Alpha of version 2, without losing the links into the others); sockets not in :data:`INTERFACE`
+    are removed."""
+    items = [item for item in tree.interface.items_tree if item.item_type == "SOCKET"]
+    present = [(item.name, item.in_out, item.socket_type) for item in items]
     if sorted(present) == sorted(INTERFACE):   # Blender lists the outputs first
         return
-    tree.interface.clear()
+    kept = set()
+    for item, key in zip(items, present):
+        if key in INTERFACE and key not in kept:
+            kept.add(key)
+        else:
+            tree.interface.remove(item)   # no longer wanted, or a second copy
     for name, in_out, socket_type in INTERFACE:
-        tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+        if (name, in_out, socket_type) not in kept:
+            item = tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+            if name == "Alpha":
+                item.default_value = 1.0   # unlinked: an opaque film, the composite as before the input existed
+                open_alpha_inputs(tree)
+
+
+def open_alpha_inputs(tree) -> None:
+    """Set the unlinked Alpha input of every group node that instances ``tree`` to 1 (an opaque film): a socket added
+    to a group's interface reaches the group nodes already in the file with the value it had when it was added, 0,
+    which would read every pixel as a hole. The compositor trees are the file's compositor node groups (Blender 5) and
+    the scenes' own trees (4.5)."""
+    trees = [group for group in bpy.data.node_groups if group.bl_idname == "CompositorNodeTree"]
+    trees += [scene.node_tree for scene in bpy.data.scenes if getattr(scene, "node_tree", None) is not None]
+    for owner in trees:
+        for node in owner.nodes:
+            if node.bl_idname == "CompositorNodeGroup" and node.node_tree == tree:
+                socket = node.inputs.get("Alpha")
+                if socket is not None and not socket.is_linked:
+                    socket.default_value = 1.0
 
 
 def build_composite_group(tree) -> None:
@@ -78,15 +111,31 @@ def build_composite_group(tree) -> None:
     group_out = nodes.new("NodeGroupOutput")
     group_out.location = (800, 0)
 
+    covered = _math(nodes, "MINIMUM", (-850, -300))        # C' = min(C, A)
+    links.new(group_in.outputs["Coverage"], covered.inputs[0])
+    links.new(group_in.outputs["Alpha"], covered.inputs[1])
+    guard = _math(nodes, "MAXIMUM", (-850, -500))
+    links.new(group_in.outputs["Coverage"], guard.inputs[0])
+    guard.inputs[1].default_value = _TINY_COVERAGE
+    weight = _math(nodes, "DIVIDE", (-600, -400))          # w = C' / C
+    links.new(covered.outputs[0], weight.inputs[0])
+    links.new(guard.outputs[0], weight.inputs[1])
+    a, b, transmittance = _mix(nodes, "MULTIPLY", (-350, 300))
+    links.new(group_in.outputs["Transmittance"], a)
+    links.new(weight.outputs[0], b)
+    a, b, inscattering_in = _mix(nodes, "MULTIPLY", (-350, -500))
+    links.new(group_in.outputs["Inscattering"], a)
+    links.new(weight.outputs[0], b)
+
     k = _math(nodes, "MAXIMUM", (-350, -300))
-    links.new(group_in.outputs["Coverage"], k.inputs[0])
+    links.new(covered.outputs[0], k.inputs[0])
     k.inputs[1].default_value = 1.0
     uncovered = _math(nodes, "SUBTRACT", (-350, -120), clamp=True)
     uncovered.inputs[0].default_value = 1.0
-    links.new(group_in.outputs["Coverage"], uncovered.inputs[1])
+    links.new(covered.outputs[0], uncovered.inputs[1])
 
     a, b, factor_sum = _mix(nodes, "ADD", (-100, 100))
-    links.new(group_in.outputs["Transmittance"], a)
+    links.new(transmittance, a)
     links.new(uncovered.outputs[0], b)
     a, b, factor = _mix(nodes, "DIVIDE", (100, 100))
     links.new(factor_sum, a)
@@ -95,7 +144,7 @@ def build_composite_group(tree) -> None:
     links.new(group_in.outputs["Image"], a)
     links.new(factor, b)
     a, b, inscattering = _mix(nodes, "DIVIDE", (300, -150))
-    links.new(group_in.outputs["Inscattering"], a)
+    links.new(inscattering_in, a)
     links.new(k.outputs[0], b)
     a, b, result = _mix(nodes, "ADD", (550, 0))
     links.new(attenuated, a)

@@ -15,6 +15,7 @@ and this compositor group evaluates, per pixel, the mean distance s = 1000 D / C
                  Precise:  the frame's baked table (``precise.precise_terms``), its texels fetched by Map UV nodes
                            with nearest filtering and blended bilinearly in the graph, as the shader does
     T = C F_ex,  L = C L_in  ->  the "Atmos Aerial Composite" group: out = Image (T + max(1 - C, 0)) / k + L / k
+                                  (C bounded by the render's alpha there: :mod:`.composite`)
 
 with the very functions that build the shader group, a colour one vector socket as there (:class:`.graph.
 CompositorBuilder`): a fully covered pixel gets exactly L0 F_ex + L_in, a sky pixel (C = 0) passes untouched.
@@ -35,6 +36,7 @@ import bpy
 
 from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_VIEW
 from . import parameters, stamps
+from .composite import open_alpha_inputs
 from .dome import cos_theta_to_sun, dome_distances, sun_direction
 from .graph import CompositorBuilder
 from .precise import precise_terms
@@ -74,6 +76,7 @@ IMAGE_INPUTS = (
     ("Coverage", AOV_COVERAGE, "NodeSocketFloat"),
     ("Distance", AOV_DISTANCE, "NodeSocketFloat"),
     ("View", AOV_VIEW, "NodeSocketVector"),
+    ("Alpha", "Alpha", "NodeSocketFloat"),   # the render's alpha bounds the coverage (composite.py: holdouts)
 )
 
 
@@ -98,7 +101,10 @@ def _ensure_interface(tree: bpy.types.NodeTree) -> None:
             tree.interface.remove(item)   # no longer wanted, or a second copy
     for name, in_out, socket_type in wanted:
         if (name, in_out, socket_type) not in kept:
-            tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+            item = tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+            if name == "Alpha":
+                item.default_value = 1.0   # unlinked (a file saved before the input): an opaque film
+                open_alpha_inputs(tree)
 
 
 def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures,
@@ -128,6 +134,7 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
     g._feed(combine, combine.inputs["Transmittance"], g.scale(f_ex, coverage, label="T = C F_ex"))
     g._feed(combine, combine.inputs["Inscattering"], g.scale(l_in, coverage, label="L = C L_in"))
     g._feed(combine, combine.inputs["Coverage"], coverage)
+    g._feed(combine, combine.inputs["Alpha"], group_in.outputs["Alpha"])
     g._feed(combine, combine.inputs["Image"], group_in.outputs["Image"])
     output = g.node("NodeGroupOutput", label="Group Output")
     g._feed(output, output.inputs["Image"], combine.outputs["Image"])

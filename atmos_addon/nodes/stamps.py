@@ -35,7 +35,8 @@ class GroupKind:
 #: group's terms); surface 2 the Per Pixel mode's outputs, 3 stamped by kind with its modes as features, 4 one node of
 #: the outputs group (which holds the AOV outputs); Per Pixel 4, 5 Vector Math on colours;
 #: In-Render 3 the dome's square roots by one Gamma node; aerial 6, sky 4, sky view 2, Per Pixel 6: the table samples,
-#: the distance to the top, phi1, the sky's path length and the sun's disk as parts (:mod:`.parts`).
+#: the distance to the top, phi1, the sky's path length and the sun's disk as parts (:mod:`.parts`); composite 2, Per
+#: Pixel 7: the render's alpha bounds the coverage (a holdout object's hole stays a hole).
 AERIAL = GroupKind("Atmos Aerial Perspective", "ShaderNodeTree", 6)
 AERIAL_SEGMENT = GroupKind("Atmos Aerial Perspective (Ray Segment)", "ShaderNodeTree", 6)
 SKY = GroupKind("Atmos Sky", "ShaderNodeTree", 4)
@@ -45,8 +46,8 @@ SKY_VIEW = GroupKind("Atmos Sky View", "ShaderNodeTree", 2)
 #: The materials' group (one node of the outputs group) and its outputs (:mod:`.surface`).
 SURFACE = GroupKind("Atmos Surface AOVs", "ShaderNodeTree", 4)
 SURFACE_OUTPUTS = GroupKind("Atmos AOV Outputs", "ShaderNodeTree", 1)
-COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 1)
-PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 6)
+COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 2)
+PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 7)
 IN_RENDER_SURFACE = GroupKind("Atmos In-Render Surface", "ShaderNodeTree", 3)
 IN_RENDER_SKY = GroupKind("Atmos In-Render Sky", "ShaderNodeTree", 3)
 #: A part: a piece of an equation built once as its own group and instanced by the groups above (:mod:`.parts`;

@@ -738,3 +738,37 @@ def test_a_world_shared_with_a_scene_without_atmos_keeps_rendering_there():
     assert first.world == shared and second.world == shared
     assert copy_name not in bpy.data.worlds and not world_applier.tagged_nodes(shared)
     assert np.max(np.abs(ru.render_to_array(second)[..., :3] - before)) <= 1e-6
+
+
+@pytest.mark.parametrize("engine, mode", [("CYCLES", "PER_PIXEL"), ("CYCLES", "COMPOSITOR"), ("EEVEE", "PER_PIXEL")])
+def test_a_holdout_collection_stays_a_hole(engine, mode):
+    """A collection set to Holdout in the view layer cuts a hole (alpha 0) that a compositor fills with a plate; its
+    materials still write their AOVs, so the hole got the haze (RGB with alpha 0) until December 2026. The render's
+    alpha now bounds the coverage: the hole stays 0 in RGBA, the target beside it is hazed, and a group node whose
+    Alpha input nothing feeds (a file saved before it) is fed on the next refresh."""
+    from atmos_addon import api
+    from atmos_addon.blender.apply import compositor
+
+    scene = new_user_scene(12, 6)
+    ru.set_engine(scene, engine, width=12, height=6)
+    if engine != "CYCLES" and "compositor_device" in scene.render.bl_rna.properties:
+        scene.render.compositor_device = "CPU"   # as in the variant scenes above (llvmpipe)
+    scene.render.film_transparent = True
+    grey = ru.emission_material("Grey", (0.5, 0.5, 0.5))
+    target(scene, "Seen", grey, 3000.0, -15.0, 12.0)
+    held = target(scene, "Held", grey, 3000.0, 15.0, 12.0)
+    holdouts = bpy.data.collections.new("Holdouts")
+    scene.collection.children.link(holdouts)
+    scene.collection.objects.unlink(held)
+    holdouts.objects.link(held)
+    bpy.context.view_layer.layer_collection.children["Holdouts"].holdout = True
+    api.enable(scene, preset="clear", sun_elevation_deg=30.0, sun_azimuth_deg=180.0, render_mode=mode)
+    image = ru.render_to_array(scene)
+    row = image[3]
+    assert np.max(np.abs(row[8:11])) <= 1e-6, row[8:11]          # the hole: 0 in RGBA
+    assert np.allclose(row[1:4, 3], 1.0) and np.max(np.abs(row[1:4, :3] - 0.5)) > 0.01   # the target: hazed
+    tree = compositor.current_tree(scene)
+    node = tree.nodes[compositor.COMPOSITE_NODE]
+    tree.links.remove(node.inputs["Alpha"].links[0])
+    api.enable(scene)
+    assert node.inputs["Alpha"].is_linked and node.inputs["Alpha"].links[0].from_socket.name == "Alpha"

@@ -8,6 +8,8 @@ Per pixel the materials leave three AOV sums (see :mod:`.materials`): ``T = sum 
     k = max(C, 1)
     out = Image * (T + max(1 - C, 0)) / k + L / k
 
+with C first bounded by the render's alpha (``nodes.composite``: a holdout collection's hole stays a hole):
+
 - a fully covered pixel (C = 1): ``Image * T + L`` -- exactly L0 F_ex + L_in (Hoffman & Preetham eq. 16);
 - a sky pixel (nothing wrote, every AOV 0): ``Image`` untouched;
 - a silhouette pixel covering a fraction c of a surface: the sky part passes through, the surface
@@ -162,6 +164,27 @@ def shown_view_layer(scene):
     return next((layer for layer in scene.view_layers if layer.use), scene.view_layers[0])
 
 
+#: The Render Layers output that bounds the coverage (:mod:`atmos_addon.nodes.composite`).
+ALPHA = "Alpha"
+
+
+def link_alpha(scene) -> None:
+    """Feed the render's alpha to each Atmos group node whose Alpha input nothing feeds (one installed by an Atmos
+    whose group had no such input), from the Render Layers node that feeds its Image."""
+    tree = current_tree(scene)
+    if tree is None:
+        return
+    for node in _installed_nodes(scene):
+        target = node.inputs.get(ALPHA)
+        image = node.inputs.get("Image")
+        if target is None or target.is_linked or image is None or not image.is_linked:
+            continue
+        layer_node = image.links[0].from_node
+        source = layer_node.outputs.get(ALPHA) if layer_node.bl_idname == "CompositorNodeRLayers" else None
+        if source is not None:
+            tree.links.new(source, target)
+
+
 def follow_shown_view_layer(scene) -> None:
     """Point the Render Layers node Atmos made at :func:`shown_view_layer` when the scene's layers changed since (a
     refresh, an enable); the user's own Render Layers nodes are theirs."""
@@ -283,6 +306,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
         if evaluation == "PER_PIXEL":
             ensure_per_pixel_group(features)
         follow_shown_view_layer(scene)
+        link_alpha(scene)   # a file saved before the group had its Alpha input
         return messages  # already installed: idempotent
     if installed is not None:
         uninstall(scene)
@@ -318,7 +342,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
         missing = []
         sources = (((AOV_COVERAGE, "Coverage"), (AOV_DISTANCE, "Distance"), (AOV_VIEW, "View")) if per_pixel else
                    ((AOV_TRANSMITTANCE, "Transmittance"), (AOV_INSCATTERING, "Inscattering"),
-                    (AOV_COVERAGE, "Coverage")))
+                    (AOV_COVERAGE, "Coverage"))) + ((ALPHA, "Alpha"),)
         if per_pixel:
             combine.label = "Atmos: aerial perspective (per pixel)"
             _drive_parameters(combine, scene)
