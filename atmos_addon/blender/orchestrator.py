@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import bpy
 
 from . import facts, group_integrity, migration, quality_choice, scene_reading, settings_io, sun_bake, sync
-from ..nodes import registry
+from ..nodes import registry, stamps
 from .apply import compositor, in_render, materials, precise_tables, sun_drivers, sun_lamp, world
 
 #: Names of scenes whose ``enabled`` switch this module is setting (its update callback waits).
@@ -136,7 +136,7 @@ def material_group(scene):
     elif plan.mode == "COMPOSITOR":
         group = aerial.ensure_aerial_perspective_group(features)
     else:
-        group = bpy.data.node_groups.get(aerial.GROUP_NAME)
+        group = stamps.local(bpy.data.node_groups, aerial.GROUP_NAME)
         if group is None and "COMPOSITOR" in plan.surface_modes:
             group = aerial.ensure_aerial_perspective_group(features)
     built = aerial.describe_features(features)
@@ -185,7 +185,7 @@ def _ensure_groups(scene) -> None:
     """Rebuild in place every group the plan lists that is stale for it (cheap when current), and stamp them."""
     plan = facts.plan_of(scene)
     group = material_group(scene)
-    if plan.compositor is not None and bpy.data.node_groups.get(materials.SURFACE_GROUP) is not None:
+    if plan.compositor is not None and stamps.local(bpy.data.node_groups, materials.SURFACE_GROUP) is not None:
         materials.ensure_surface_group(group, plan.surface_modes)   # the materials' group, once they have it
     if plan.compositor is not None:
         compositor.link_alpha(scene)   # a group node of a file saved before the composite read the render's alpha

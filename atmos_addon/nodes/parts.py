@@ -132,7 +132,7 @@ def ensure(part: Part, tree_type: str, make_builder: Callable[..., Any]) -> bpy.
     name that is not this part's is renamed "... (not Atmos)" and left to its users."""
     kind = kind_for(tree_type)
     name = group_name(part, tree_type)
-    tree = bpy.data.node_groups.get(name)
+    tree = stamps.local(bpy.data.node_groups, name)
     if tree is not None and (tree.bl_idname != tree_type or stamps.kind_of(tree) != kind
                              or _name_of(str(tree.get(stamps.FEATURES_KEY, ""))) != part.name):
         tree.name = name + " (not Atmos)"

@@ -33,7 +33,7 @@ import bpy
 
 from ..physics.aerial_perspective import SMALL_OPTICAL_DEPTH
 from ..physics.precise import DEFAULT_SHAPE
-from . import parameters, parts
+from . import parameters, parts, stamps
 from .dome import cos_theta_to_sun, sun_direction
 from .graph import GraphBuilder, Socket
 from .terms import phase_henyey_greenstein, phase_rayleigh
@@ -51,7 +51,7 @@ def branch_large(g: GraphBuilder, x: Socket, threshold: float) -> Socket:
 
 def table_image() -> bpy.types.Image | None:
     """The baked table image, or None before the first bake (the graph then samples nothing: black)."""
-    return bpy.data.images.get(IMAGE_NAME)
+    return stamps.local(bpy.data.images, IMAGE_NAME)   # never a library's
 
 
 def _texel(g: GraphBuilder, u: Socket, v: Socket, label: str) -> Socket:

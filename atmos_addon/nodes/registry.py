@@ -33,7 +33,7 @@ def _rebuild_outputs(tree: bpy.types.NodeTree, key: str) -> None:
     aerial = next((group for group in surface.inner_groups(tree) if stamps.kind_of(group) == stamps.AERIAL), None)
     if aerial is None and "COMPOSITOR" in modes:
         aerial = aerial_perspective.ensure_aerial_perspective_group()
-    wrapper = bpy.data.node_groups.get(surface.SURFACE_GROUP)
+    wrapper = stamps.local(bpy.data.node_groups, surface.SURFACE_GROUP)
     with surface.detached(wrapper, tree) if stamps.kind_of(wrapper) == stamps.SURFACE else contextlib.nullcontext():
         surface.build_outputs_group(tree, aerial, modes)
 
@@ -41,7 +41,7 @@ def _rebuild_outputs(tree: bpy.types.NodeTree, key: str) -> None:
 def _rebuild_surface(tree: bpy.types.NodeTree, key: str) -> None:
     """The material group around the file's outputs group (built for the stamped modes when it is missing)."""
     modes = _modes(key, tree)
-    outputs = bpy.data.node_groups.get(surface.OUTPUTS_GROUP)
+    outputs = stamps.local(bpy.data.node_groups, surface.OUTPUTS_GROUP)
     if stamps.kind_of(outputs) != stamps.SURFACE_OUTPUTS:
         aerial = aerial_perspective.ensure_aerial_perspective_group() if "COMPOSITOR" in modes else None
         outputs = surface.ensure_outputs_group(aerial, modes)

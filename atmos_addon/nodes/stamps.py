@@ -89,11 +89,19 @@ def kind_of(tree: bpy.types.NodeTree | None) -> GroupKind | None:
     return next((kind for kind in KINDS if kind.name == name and tree.bl_idname == kind.tree_type), None)
 
 
+def local(collection, name: str):
+    """The file's own data-block ``name`` in ``collection`` (``bpy.data.node_groups``, ``bpy.data.images``), not a
+    linked one of that name; None when the file has none. A plain ``get(name)`` returns a linked data-block when the
+    file has no local one of the name: an asset linked from a file saved with Atmos on brings that file's groups (and
+    at the Precise level its table image), which Atmos must neither edit nor point this file's materials at."""
+    return collection.get((name, None))
+
+
 def group(kind: GroupKind, *, replace_foreign: bool = False) -> bpy.types.NodeTree:
     """``kind``'s data-block (a per-file kind), created when missing. A data-block of that name that is not of the
     kind's tree type is renamed "... (not Atmos)" and replaced when ``replace_foreign``, else an error the user must
     resolve (its users would otherwise silently change)."""
-    tree = bpy.data.node_groups.get(kind.name)
+    tree = local(bpy.data.node_groups, kind.name)
     if tree is not None and tree.bl_idname != kind.tree_type:
         if not replace_foreign:
             raise TypeError(f'Node group "{kind.name}" exists but is a {tree.bl_idname}, not a {kind.tree_type}; '

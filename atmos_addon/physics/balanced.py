@@ -273,9 +273,9 @@ def inscattering_balanced(h0_m: ArrayLike, view_dir_or_cos_zenith: ArrayLike, di
     ``cos_theta`` = mu, the cosine between the view ray and the direction to the sun; ``sun_irradiance``
     the ground sun E_sun per channel ((3,) or (..., 3)). With ``sun_optical_depths`` (from
     :func:`sun_optical_depths_ground`) E_sun,j is E_sun raised to its value at the altitude of the
-    piece's lower end, or with ``sun_at="middle"`` of the mean of its ends' altitudes (:func:`sun_irradiance_at_altitude`;
-    the Per Pixel variant, module docstring); otherwise E_sun,j = E_sun. Radiance in the units of
-    E_sun per steradian, never negative.
+    piece's lower end, or with ``sun_at="middle"`` of the mean of its ends' altitudes
+    (:func:`sun_irradiance_at_altitude`; the Per Pixel variant, module docstring); otherwise E_sun,j = E_sun.
+    Radiance in the units of E_sun per steradian, never negative.
     """
     if sun_at not in SUN_AT:
         raise ValueError(f"sun_at must be one of {SUN_AT}; got {sun_at!r}")

@@ -58,7 +58,7 @@ def _set_material_tree(material) -> bpy.types.NodeTree:
     return tree
 
 
-def _scene(kind: str):
+def _scene(kind: str, library=None):
     """``slots``: a slot material on each target; ``instanced``: the first by its slot, the second by a Geometry
     Nodes modifier (no slot), the third in a collection the scene does not hold, instanced by an empty;
     ``set``: the first by its slot, the other two in the scene's background set; ``override``: no target has a
@@ -92,6 +92,13 @@ def _scene(kind: str):
             backdrop.collection.objects.link(ru.make_plane(scene, f"Target {index}", _corners(index), grey[index]))
             scene.collection.objects.unlink(backdrop.objects[f"Target {index}"])
         scene.background_set = backdrop
+    elif kind == "linked":   # the collection "Assets" of ``library`` (:func:`_library`), instanced by an empty
+        ru.make_plane(scene, "Target 0", _corners(0), grey[0])
+        with bpy.data.libraries.load(str(library), link=True) as (_, data):
+            data.collections = ["Assets"]
+        instancer = bpy.data.objects.new("Assets instance", None)
+        instancer.instance_type, instancer.instance_collection = "COLLECTION", data.collections[0]
+        scene.collection.objects.link(instancer)
     elif kind == "override":
         for index in range(3):
             ru.make_plane(scene, f"Target {index}", _corners(index), None)
@@ -201,3 +208,58 @@ def test_cli_render_and_apply_then_a_farm_haze_them_too(tmp_path, reference):
     for kind in ("instanced", "override"):
         farm = np.load(str(tmp_path / f"{kind}_farm.npy"))
         assert np.max(np.abs(_middles(farm) - reference)) <= 1e-4, kind
+
+
+def _library(path, *, atmos: bool, render_mode: str = "PER_PIXEL") -> None:
+    """A library file: targets 1 and 2 in its collection "Assets", their materials "Asset 1" and "Asset 2"; with
+    ``atmos``, saved with Atmos on in ``render_mode`` (so its materials carry the Atmos nodes)."""
+    scene = _scene("slots")
+    assets = bpy.data.collections.new("Assets")
+    scene.collection.children.link(assets)
+    for index in (1, 2):
+        target = bpy.data.objects[f"Target {index}"]
+        target.data.materials[0].name = f"Asset {index}"
+        scene.collection.objects.unlink(target)
+        assets.objects.link(target)
+    if atmos:
+        api.enable(scene, **OPTIONS, render_mode=render_mode)
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+
+
+def test_linked_assets_from_a_file_with_atmos_on_are_hazed(tmp_path, reference):
+    """A linked material cannot be edited, but one linked from a file saved with Atmos on carries the Atmos nodes,
+    which write the view layer's AOVs by name: it is counted as managed, hazed as a local one, and Atmos builds its
+    own groups beside the library's (a plain lookup by name returned the library's, which Atmos would have edited)."""
+    from atmos_addon.nodes import stamps
+
+    library = tmp_path / "assets.blend"
+    _library(library, atmos=True)
+    scene = _scene("linked", library)
+    report = api.enable(scene, **OPTIONS)
+    assert {"Asset 1", "Asset 2"} <= set(report.managed) and report.skipped == [], report.skipped
+    linked = [tree for tree in bpy.data.node_groups if tree.library is not None]
+    assert linked and all(stamps.local(bpy.data.node_groups, tree.name) is not None for tree in linked)
+    material_group = bpy.data.materials["Grey 0"].node_tree.nodes
+    assert all(node.node_tree.library is None for node in material_group if node.bl_idname == "ShaderNodeGroup")
+    pixels = _middles(ru.render_to_array(scene))
+    assert np.max(np.abs(pixels - reference)) <= 1e-4, (pixels, reference)
+    api.disable(scene)
+    assert not materials.is_injected(bpy.data.materials["Grey 0"])
+
+
+def test_linked_assets_without_the_nodes_are_reported_with_what_to_do(tmp_path):
+    """From a file without Atmos: skipped, the report says to make it local or turn Atmos on in that file; from a file
+    whose Atmos nodes write another mode's AOVs: skipped, and the report says which mode to switch to."""
+    plain = tmp_path / "plain.blend"
+    _library(plain, atmos=False)
+    report = api.enable(_scene("linked", plain), **OPTIONS)
+    reasons = dict(report.skipped)
+    assert set(reasons) == {"Asset 1", "Asset 2"}
+    assert all("make it local, or turn Atmos on in that file" in reason for reason in reasons.values())
+    per_pixel = tmp_path / "per_pixel.blend"
+    _library(per_pixel, atmos=True)
+    report = api.enable(_scene("linked", per_pixel), **OPTIONS, render_mode="COMPOSITOR")
+    reasons = dict(report.skipped)
+    assert set(reasons) == {"Asset 1", "Asset 2"}
+    assert all("Atmos nodes of another mode (no atmos_inscattering, atmos_transmittance)" in reason
+               for reason in reasons.values()), reasons

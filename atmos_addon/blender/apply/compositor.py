@@ -219,7 +219,7 @@ def ensure_per_pixel_group(features):
     table's inputs are driven only at that level (the scene has those properties only then).
     """
     per_pixel = nodes.per_pixel
-    old = bpy.data.node_groups.get(per_pixel.GROUP_NAME)
+    old = nodes.stamps.local(bpy.data.node_groups, per_pixel.GROUP_NAME)
     before = None if old is None else (len(old.interface.items_tree), old.get(per_pixel.FEATURES_KEY))
     tree = per_pixel.ensure_per_pixel_group(features, nodes.composite.ensure_composite_group())
     if before is not None and (len(tree.interface.items_tree), tree.get(per_pixel.FEATURES_KEY)) != before:

@@ -32,7 +32,8 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from ...nodes import surface
+from ...nodes import stamps, surface
+from ...plan import AOVS
 from ..tree_edits import (TAG, active_of, copy_input, cycles_of, cycles_output, free_spot, output_nodes, place_last,
                           remove_tagged, surface_link, take_over_cycles_output)
 
@@ -165,8 +166,10 @@ def is_injected(material) -> bool:
 def skip_reason(material) -> str | None:
     """Why the material cannot be managed, or None."""
     if not _is_editable(material):
-        where = material.library.filepath if material.library is not None else "a library override"
-        return f"linked from {where} (not editable): make it local to include it"
+        if material.library is None:
+            return "a library override (not editable): make it local to include it"
+        return (f"linked from {material.library.filepath} (not editable): make it local, or turn Atmos on in that "
+                "file (its materials then carry the Atmos nodes)")
     if not _uses_nodes(material):
         return "does not use nodes: enable 'Use Nodes' to include it"
     return None
@@ -414,6 +417,19 @@ def inject(material, surface_group, tagged=None) -> None:
         keep_opaque(material, present=[], output=cycles)
 
 
+def library_aovs(material) -> set[str] | None:
+    """The AOVs written by the Atmos nodes a linked material carries (Atmos was on in its library file when it was
+    saved), None when it carries none. Such a material needs no edit: its surface group writes the view layer's Atmos
+    AOVs by name, like a local one (the Per Pixel mode's distance, view and coverage do not depend on the file)."""
+    names: set[str] = set()
+    found = False
+    for node in atmos_nodes(material):
+        if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:
+            found = True
+            names |= surface.aov_names(node.node_tree)
+    return names if found else None
+
+
 def remove(material) -> bool:
     """Delete exactly the Atmos-tagged nodes of ``material`` (and with them their links); True if any.
 
@@ -433,8 +449,17 @@ def inject_scene(scene, aerial_group, *, only_new: bool = False, evaluations=("C
     report = MaterialReport()
     materials, report.objects_without_material = scene_materials(scene)
     todo = []
+    needed = {name for mode in evaluations for name, _ in AOVS.get(mode, ())}
     for material in materials:
         reason = skip_reason(material)
+        if reason is not None and material.library is not None:
+            written = library_aovs(material)
+            if written is not None and needed <= written:
+                report.managed.append(material.name)   # the Atmos nodes its library file gave it write what we read
+                continue
+            if written is not None:
+                reason = (f"linked from {material.library.filepath} with Atmos nodes of another mode (no "
+                          f"{', '.join(sorted(needed - written))}): switch that file to this scene's mode")
         if reason is not None:
             report.skipped.append((material.name, reason))
             continue
@@ -442,7 +467,7 @@ def inject_scene(scene, aerial_group, *, only_new: bool = False, evaluations=("C
         tagged = atmos_nodes(material)
         if not (only_new and any(node.bl_idname == "ShaderNodeGroup" for node in tagged)):
             todo.append((material, tagged))
-    if not todo and bpy.data.node_groups.get(SURFACE_GROUP) is None:
+    if not todo and stamps.local(bpy.data.node_groups, SURFACE_GROUP) is None:
         return report  # nothing to inject: no group with zero users left in the file
     surface_group = surface.ensure_surface_group(aerial_group, evaluations)
     with surface.detached(surface_group) if len(todo) > BULK_THRESHOLD else contextlib.nullcontext():
@@ -455,7 +480,7 @@ def inject_scene(scene, aerial_group, *, only_new: bool = False, evaluations=("C
 def remove_all(materials) -> list[str]:
     """Strip the Atmos nodes from ``materials``; the names of those that had them (with many materials the shared group
     detached meanwhile: :func:`.surface.detached`)."""
-    surface_group = bpy.data.node_groups.get(SURFACE_GROUP)
+    surface_group = stamps.local(bpy.data.node_groups, SURFACE_GROUP)
     bulk = surface_group is not None and len(materials) > BULK_THRESHOLD and surface_group.users
     stripped = []
     with surface.detached(surface_group) if bulk else contextlib.nullcontext():

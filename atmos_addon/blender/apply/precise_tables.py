@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
+from ...nodes import stamps
 from ...physics.precise import DEFAULT_SHAPE, Tile, bake_tile, key_tiles, shared_max_distance, tables_ready
 from .. import facts, group_integrity, scene_reading
 from ..debounce import Debounced
@@ -95,7 +96,7 @@ def _ensure_image(width: int, height: int) -> bpy.types.Image:
     """The table image at this size (a new float, non-colour image when missing; resized in place, so the groups'
     image nodes keep pointing at it: re-pointing them re-evaluates every material that uses the groups)."""
     name = scene_reading.groups().precise.IMAGE_NAME
-    image = bpy.data.images.get(name)
+    image = stamps.local(bpy.data.images, name)
     if image is not None and tuple(image.size) != (width, height):
         image.scale(width, height)
     if image is None:
@@ -130,7 +131,7 @@ def _link_image(image: bpy.types.Image) -> None:
     groups (the Precise sky view), of the Per Pixel compositor group and of the parts they use (the table samples;
     those built) at ``image``."""
     groups = scene_reading.groups()
-    named = [bpy.data.node_groups.get(name) for name in (groups.aerial_perspective.GROUP_NAME,
+    named = [stamps.local(bpy.data.node_groups, name) for name in (groups.aerial_perspective.GROUP_NAME,
                                                         groups.sky.SKY_GROUP_NAME, groups.stamps.SKY_VIEW.name,
                                                         groups.per_pixel.GROUP_NAME)]
     lighting = [tree for tree in bpy.data.node_groups if groups.sky_lighting.is_sky_lighting_group(tree)]
@@ -218,7 +219,7 @@ def _tiles(request: _Request, *, preview: bool) -> list[Tile]:
 
 def _current_image(request: _Request, scene) -> bpy.types.Image | None:
     """The table image when it holds what ``request`` asks for (and the scene its parameters), else None."""
-    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
+    image = stamps.local(bpy.data.images, scene_reading.groups().precise.IMAGE_NAME)
     current = (image is not None and image.get(_KEY) == request.key
                and scene_reading.groups().parameters.PRECISE_TILE in scene)
     return image if current else None
@@ -286,7 +287,7 @@ def remove(scene) -> None:
     _clear_keys(scene)
     if facts.KEY_TILES in scene:
         del scene[facts.KEY_TILES]
-    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
+    image = stamps.local(bpy.data.images, scene_reading.groups().precise.IMAGE_NAME)
     still_used = any(getattr(other, "atmos", None) is not None and other.atmos.enabled and other is not scene
                      and other.get(scene_reading.groups().parameters.PRECISE_TILE) is not None
                      for other in bpy.data.scenes)
@@ -297,14 +298,14 @@ def remove(scene) -> None:
 def free_buffers() -> None:
     """Drop the table image's pixel buffer (and GPU texture) so the next read decodes the packed data. An undo step
     restores the packed data and the bake key but not the buffer Blender keeps in memory."""
-    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
+    image = stamps.local(bpy.data.images, scene_reading.groups().precise.IMAGE_NAME)
     if image is not None and image.packed_file is not None:
         image.buffers_free()
 
 
 def describe() -> str:
     """One line for reports: how many tiles the table image holds."""
-    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
+    image = stamps.local(bpy.data.images, scene_reading.groups().precise.IMAGE_NAME)
     if image is None:
         return "Precise: no table baked yet"
     tiles = int(image.get(_TILES, 1))
@@ -347,7 +348,7 @@ def follow(scene) -> None:
 def layout_stale() -> bool:
     """True when the file's table image was written with another tile layout than this version's (an older
     Atmos's): its groups would read the wrong columns until it is baked again."""
-    image = bpy.data.images.get(scene_reading.groups().precise.IMAGE_NAME)
+    image = stamps.local(bpy.data.images, scene_reading.groups().precise.IMAGE_NAME)
     return image is not None and image.get(_LAYOUT_KEY) != _LAYOUT
 
 
