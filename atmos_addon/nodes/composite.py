@@ -64,21 +64,28 @@ _TINY_COVERAGE = 1e-20
 
 
 def _ensure_interface(tree) -> None:
-    """Give ``tree`` the group's interface, keeping every socket it already has of it: a rebuilt group's sockets, and
-    so the links of the compositor's group nodes to them, survive (a group of an earlier version gains its missing
-    inputs, the Alpha of version 2, without losing the links into the others); sockets not in :data:`INTERFACE`
-    are removed."""
+    """Give ``tree`` the group's interface (:func:`keep_interface`): a group of an earlier version gains the Alpha of
+    version 2 without losing the links into its other inputs."""
+    keep_interface(tree, list(INTERFACE), ordered=False)
+
+
+def keep_interface(tree, wanted: list[tuple[str, str, str]], *, ordered: bool = True) -> None:
+    """Give ``tree`` the ``wanted`` sockets ((name, in/out, socket type); Blender lists the outputs first), keeping
+    every socket it already has of those, so the links into its group nodes and the drivers on them survive a
+    rebuild: sockets no longer wanted (or second copies) are removed, missing ones added; an added "Alpha" input
+    starts at 1 in the interface and in the group nodes already in the file (:func:`open_alpha_inputs`).
+    ``ordered``: the order counts when comparing (else only the set of sockets)."""
     items = [item for item in tree.interface.items_tree if item.item_type == "SOCKET"]
     present = [(item.name, item.in_out, item.socket_type) for item in items]
-    if sorted(present) == sorted(INTERFACE):   # Blender lists the outputs first
+    if (present == wanted) if ordered else (sorted(present) == sorted(wanted)):
         return
     kept = set()
     for item, key in zip(items, present):
-        if key in INTERFACE and key not in kept:
+        if key in wanted and key not in kept:
             kept.add(key)
         else:
             tree.interface.remove(item)   # no longer wanted, or a second copy
-    for name, in_out, socket_type in INTERFACE:
+    for name, in_out, socket_type in wanted:
         if (name, in_out, socket_type) not in kept:
             item = tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
             if name == "Alpha":

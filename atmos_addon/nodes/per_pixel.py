@@ -36,7 +36,7 @@ import bpy
 
 from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_VIEW
 from . import parameters, stamps
-from .composite import open_alpha_inputs
+from .composite import keep_interface
 from .dome import cos_theta_to_sun, dome_distances, sun_direction
 from .graph import CompositorBuilder
 from .precise import precise_terms
@@ -89,22 +89,7 @@ def _ensure_interface(tree: bpy.types.NodeTree) -> None:
               + [(name, "INPUT", "NodeSocketVector" if size == 3 else "NodeSocketFloat")
                  for _, name, size in PARAMETER_SOCKETS]
               + [(name, "INPUT", "NodeSocketVector") for _, name, _ in PRECISE_SOCKETS])
-    items = [item for item in tree.interface.items_tree if item.item_type == "SOCKET"]
-    present = [(item.name, item.in_out, item.socket_type) for item in items]
-    if present == wanted:
-        return
-    kept = set()
-    for item, key in zip(items, present):
-        if key in wanted and key not in kept:
-            kept.add(key)
-        else:
-            tree.interface.remove(item)   # no longer wanted, or a second copy
-    for name, in_out, socket_type in wanted:
-        if (name, in_out, socket_type) not in kept:
-            item = tree.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
-            if name == "Alpha":
-                item.default_value = 1.0   # unlinked (a file saved before the input): an opaque film
-                open_alpha_inputs(tree)
+    keep_interface(tree, wanted)
 
 
 def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures,

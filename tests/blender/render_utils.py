@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+import textwrap
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -294,6 +295,51 @@ def snapshot_tree(tree) -> tuple | None:
         nodes.append((node.name, node.bl_idname, tuple(node.location), node.label,
                       getattr(node, "is_active_output", None), values))
     links = sorted(
-        (l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier) for l in tree.links
+        (link.from_node.name, link.from_socket.identifier, link.to_node.name, link.to_socket.identifier)
+        for link in tree.links
     )
     return sorted(nodes), links
+
+
+#: A farm machine without the add-on: opens each (blend, output stem) pair of its arguments, renders it to a 32-bit
+#: EXR and saves the RGB pixels (row 0 at the top) as ``<stem>.npy``; prints whether the add-on was imported. Run with
+#: ``sys.executable -I`` and a HOME of the test's own (tests of ``apply`` then a farm).
+FARM_SCRIPT = textwrap.dedent("""
+    import json, sys
+    import bpy
+    import numpy as np
+    for blend, out in zip(sys.argv[1::2], sys.argv[2::2]):
+        bpy.ops.wm.open_mainfile(filepath=blend)
+        scene = bpy.context.scene
+        assert not any(name.startswith("atmos_addon") for name in sys.modules), "the add-on was imported"
+        settings = scene.render.image_settings
+        if "media_type" in settings.bl_rna.properties:
+            settings.media_type = "IMAGE"
+        settings.file_format, settings.color_depth, settings.color_mode = "OPEN_EXR", "32", "RGB"
+        scene.render.filepath = out + ".exr"
+        bpy.ops.render.render(write_still=True)
+        image = bpy.data.images.load(out + ".exr", check_existing=False)
+        width, height = image.size
+        pixels = np.empty(width * height * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+        np.save(out + ".npy", pixels.reshape(height, width, 4)[::-1, :, :3])
+    print(json.dumps({"addon_loaded": "atmos_addon" in sys.modules}))
+""")
+
+
+def run_farm(folder: Path, arguments: Sequence[str], script: str = FARM_SCRIPT) -> dict:
+    """Run ``script`` (default :data:`FARM_SCRIPT`) with ``arguments`` in a fresh Python (``-I``: no add-on on its
+    path, no PYTHON* or BLENDER_* variables, HOME ``folder``) as a farm machine without the add-on would; its last
+    line of output, parsed as JSON. Fails the test when it does not exit cleanly."""
+    import json
+    import subprocess
+    import sys
+
+    path = Path(folder) / "farm.py"
+    path.write_text(script)
+    env = {key: value for key, value in os.environ.items() if not key.startswith(("PYTHON", "BLENDER_"))}
+    env["HOME"] = str(folder)
+    result = subprocess.run([sys.executable, "-I", str(path), *arguments], cwd=str(folder), env=env,
+                            capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    return json.loads(result.stdout.strip().splitlines()[-1])

@@ -49,7 +49,8 @@ def snapshot(tree) -> tuple:
         )
         nodes.append((node.name, node.bl_idname, tuple(node.location), values))
     links = sorted(
-        (l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier) for l in tree.links
+        (link.from_node.name, link.from_socket.identifier, link.to_node.name, link.to_socket.identifier)
+        for link in tree.links
     )
     return sorted(nodes), links
 

@@ -13,12 +13,7 @@ that never imports the add-on; ``disable`` strips every material it added nodes 
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import subprocess
-import sys
-import textwrap
 
 import bpy
 import numpy as np
@@ -162,27 +157,6 @@ def test_a_material_override_set_after_enabling_is_picked_up():
     assert materials.is_injected(override)
 
 
-FARM_SCRIPT = textwrap.dedent("""
-    import json, sys
-    import bpy
-    import numpy as np
-    for blend, out in zip(sys.argv[1::2], sys.argv[2::2]):
-        bpy.ops.wm.open_mainfile(filepath=blend)
-        scene = bpy.context.scene
-        assert not any(name.startswith("atmos_addon") for name in sys.modules), "the add-on was imported"
-        settings = scene.render.image_settings
-        if "media_type" in settings.bl_rna.properties:
-            settings.media_type = "IMAGE"
-        settings.file_format, settings.color_depth, settings.color_mode = "OPEN_EXR", "32", "RGB"
-        scene.render.filepath = out + ".exr"
-        bpy.ops.render.render(write_still=True)
-        image = bpy.data.images.load(out + ".exr", check_existing=False)
-        width, height = image.size
-        pixels = np.empty(width * height * 4, dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-        np.save(out + ".npy", pixels.reshape(height, width, 4)[::-1, :, :3])
-    print(json.dumps({"addon_loaded": "atmos_addon" in sys.modules}))
-""")
 
 
 def test_cli_render_and_apply_then_a_farm_haze_them_too(tmp_path, reference):
@@ -197,14 +171,7 @@ def test_cli_render_and_apply_then_a_farm_haze_them_too(tmp_path, reference):
         applied = tmp_path / f"{kind}_applied.blend"
         assert cli.main(["apply", str(source), *CLI_OPTIONS, "--output", str(applied)]) == 0
         farm_args += [str(applied), str(tmp_path / f"{kind}_farm")]
-    script = tmp_path / "farm.py"
-    script.write_text(FARM_SCRIPT)
-    env = {key: value for key, value in os.environ.items() if not key.startswith(("PYTHON", "BLENDER_"))}
-    env["HOME"] = str(tmp_path)
-    result = subprocess.run([sys.executable, "-I", str(script), *farm_args], cwd=str(tmp_path), env=env,
-                            capture_output=True, text=True, timeout=900)
-    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
-    assert json.loads(result.stdout.strip().splitlines()[-1]) == {"addon_loaded": False}
+    assert ru.run_farm(tmp_path, farm_args) == {"addon_loaded": False}
     for kind in ("instanced", "override"):
         farm = np.load(str(tmp_path / f"{kind}_farm.npy"))
         assert np.max(np.abs(_middles(farm) - reference)) <= 1e-4, kind

@@ -11,7 +11,6 @@ horizon. Renders are tiny; the CLI runs in a subprocess as a pipeline would call
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import subprocess
@@ -328,27 +327,6 @@ def test_a_black_plane_beyond_the_domes_is_the_sky_beside_it(engine):
 # -- 2. render = apply + a farm without the add-on ----------------------------------------------------------
 
 
-FARM_SCRIPT = textwrap.dedent("""
-    import json, sys
-    import bpy
-    import numpy as np
-    for blend, out in zip(sys.argv[1::2], sys.argv[2::2]):
-        bpy.ops.wm.open_mainfile(filepath=blend)
-        scene = bpy.context.scene
-        assert not any(name.startswith("atmos_addon") for name in sys.modules), "the add-on was imported"
-        settings = scene.render.image_settings
-        if "media_type" in settings.bl_rna.properties:
-            settings.media_type = "IMAGE"
-        settings.file_format, settings.color_depth, settings.color_mode = "OPEN_EXR", "32", "RGB"
-        scene.render.filepath = out + ".exr"
-        bpy.ops.render.render(write_still=True)
-        image = bpy.data.images.load(out + ".exr", check_existing=False)
-        width, height = image.size
-        pixels = np.empty(width * height * 4, dtype=np.float32)
-        image.pixels.foreach_get(pixels)
-        np.save(out + ".npy", pixels.reshape(height, width, 4)[::-1, :, :3])
-    print(json.dumps({"addon_loaded": "atmos_addon" in sys.modules}))
-""")
 
 
 def _planes_scene(path: Path, *, osl: bool = False) -> None:
@@ -382,14 +360,7 @@ def test_render_equals_apply_then_a_farm_without_the_add_on(tmp_path):
             applied = tmp_path / f"{key}.blend"
             assert cli.main(["apply", str(source), *options, "--output", str(applied)]) == 0
             farm_args += [str(applied), str(tmp_path / f"{key}_farm")]
-    script = tmp_path / "farm.py"
-    script.write_text(FARM_SCRIPT)
-    env = {key: value for key, value in os.environ.items() if not key.startswith(("PYTHON", "BLENDER_"))}
-    env["HOME"] = str(tmp_path)
-    result = subprocess.run([sys.executable, "-I", str(script), *farm_args], cwd=str(tmp_path), env=env,
-                            capture_output=True, text=True, timeout=900)
-    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
-    assert json.loads(result.stdout.strip().splitlines()[-1]) == {"addon_loaded": False}
+    assert ru.run_farm(tmp_path, farm_args) == {"addon_loaded": False}
     for key, image in rendered.items():
         farm = np.load(str(tmp_path / f"{key}_farm.npy"))
         difference = float(np.max(np.abs(farm - image)))
@@ -690,14 +661,7 @@ def test_a_cut_between_cameras_renders_each_shot_with_its_own_table(tmp_path, qu
     scene.frame_set(2)   # saved at the second shot
     applied = tmp_path / "cut.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(applied))
-    script = tmp_path / "farm.py"
-    script.write_text(FRAMES_FARM_SCRIPT)
-    env = {key: value for key, value in os.environ.items() if not key.startswith(("PYTHON", "BLENDER_"))}
-    env["HOME"] = str(tmp_path)
-    result = subprocess.run([sys.executable, "-I", str(script), str(applied), str(tmp_path / "farm")],
-                            cwd=str(tmp_path), env=env, capture_output=True, text=True, timeout=600)
-    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
-    summary = json.loads(result.stdout.strip().splitlines()[-1])
+    summary = ru.run_farm(tmp_path, [str(applied), str(tmp_path / "farm")], FRAMES_FARM_SCRIPT)
     assert summary == {"addon_loaded": False, "cameras": {"1": "Test Camera", "2": "Test Camera.001"}}
     for frame in (1, 2):
         farm = np.load(str(tmp_path / f"farm_{frame}.npy"))
