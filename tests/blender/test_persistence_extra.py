@@ -228,7 +228,7 @@ def test_appended_objects_are_picked_up_and_linked_materials_are_reported(tmp_pa
     reasons = dict(report.skipped)
     assert "MatC" in reasons, report.skipped
     reason = reasons["MatC"]
-    assert "linked from" in reason and "C.blend" in reason and "make it local to include it" in reason
+    assert "linked from" in reason and "C.blend" in reason and "make it local, or turn Atmos on in that file" in reason
     assert not materials.is_injected(linked)
     assert [item.name for item in scene.atmos.skipped_materials] == ["MatC"]
     assert materials.is_injected(bpy.data.materials["Mat0"]) and materials.is_injected(appended)
