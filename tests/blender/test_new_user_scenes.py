@@ -736,3 +736,38 @@ def test_a_holdout_collection_stays_a_hole(engine, mode):
     tree.links.remove(node.inputs["Alpha"].links[0])
     api.enable(scene)
     assert node.inputs["Alpha"].is_linked and node.inputs["Alpha"].links[0].from_socket.name == "Alpha"
+
+
+def test_a_world_linked_from_a_library_gets_the_sky_in_a_copy(tmp_path):
+    """A world linked from a library (a pipeline's lighting file) cannot be edited: the sky went into it in memory and
+    was lost on save (a farm rendered the library's world). The scene now gets a local copy with the sky, and a
+    disable gives it the linked world back and removes the copy."""
+    from atmos_addon import api
+    from atmos_addon.blender.apply import world as world_applier
+
+    library = tmp_path / "lighting.blend"
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    shared = bpy.data.worlds.new("Studio")
+    ru.set_use_nodes(shared, True)
+    shared.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.3, 0.4, 1.0)
+    shared.use_fake_user = True
+    bpy.ops.wm.save_as_mainfile(filepath=str(library))
+    scene = new_user_scene(8, 8)
+    ru.set_engine(scene, "CYCLES", width=8, height=8)
+    with bpy.data.libraries.load(str(library), link=True) as (_, data):
+        data.worlds = ["Studio"]
+    linked = data.worlds[0]
+    scene.world = linked
+    report = api.enable(scene, preset="clear")
+    assert scene.world != linked and scene.world.library is None and world_applier.tagged_nodes(scene.world)
+    assert any("a copy of 'Studio', which is linked from a library" in line for line in report.messages)
+    saved = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(saved))
+    bpy.ops.wm.open_mainfile(filepath=str(saved))
+    scene = bpy.context.scene
+    assert scene.world.library is None and world_applier.tagged_nodes(scene.world)   # the sky was saved
+    assert not np.allclose(ru.render_to_array(scene)[..., :3], (0.2, 0.3, 0.4), atol=0.01)
+    copy_name = scene.world.name
+    api.disable(scene)
+    assert scene.world.name == "Studio" and scene.world.library is not None
+    assert copy_name not in bpy.data.worlds

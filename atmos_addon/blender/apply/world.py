@@ -33,6 +33,8 @@ from ..scene_reading import groups
 from ..tree_edits import REACTIVATE_KEY, TAG
 
 STATE_KEY = "atmos_sky"
+#: Scene property: the world the sky's copy was made from (an ID reference, :func:`install_sky`).
+ORIGINAL_WORLD_KEY = "atmos_sky_original_world"
 CREATED_WORLD_NAME = "Atmos Sky World"
 SKY_NODE_TAG = "sky"
 BACKGROUND_TAG = "sky background"
@@ -152,12 +154,14 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
         scene.world = world
         state["created_world"] = world.name
     else:
-        if keeping:   # the sky goes into a copy: the other scenes keep the world they render with
+        linked = world.library is not None or not getattr(world, "is_editable", True)
+        if keeping or linked:   # the sky goes into a copy: the other scenes keep theirs, a library's is not ours
             original = world
             world = original.copy()
             world.name = f"{original.name} (Atmos)"
             scene.world = world
             state["copied_from"] = original.name
+            scene[ORIGINAL_WORLD_KEY] = original   # an ID reference: a linked world no scene uses is kept on save
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)
             state["use_nodes"] = bool(world.use_nodes)
@@ -198,6 +202,9 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
     registry.remove_unused((stamps.SKY_LIGHTING,))   # that of a world deleted since: the new one takes its name
     _add_lighting_branch(tree, features, background)
     scene[STATE_KEY] = state
+    if "copied_from" in state and not keeping:
+        return (f"Sky: in world '{world.name}', a copy of '{state['copied_from']}', which is linked from a library "
+                "(not editable)")
     if "copied_from" in state:
         names = ", ".join(f"'{other.name}'" for other in keeping)
         return (f"Sky: in world '{world.name}', a copy of '{state['copied_from']}', which scene(s) {names} keep "
@@ -220,12 +227,12 @@ def uninstall_sky(scene: bpy.types.Scene) -> None:
     if state is None:
         return
     state = state.to_dict() if hasattr(state, "to_dict") else dict(state)
-    world = bpy.data.worlds.get(state.get("world", ""))
+    world = bpy.data.worlds.get((state.get("world", ""), None))
     created = state.get("created_world")
     copied_from = state.get("copied_from")
     if world is not None and copied_from is not None:   # the scene's own copy: the scene gets the original back
         if scene.world == world:
-            scene.world = bpy.data.worlds.get(copied_from)
+            scene.world = scene.get(ORIGINAL_WORLD_KEY) or bpy.data.worlds.get((copied_from, None))
         if world.users == 0:
             bpy.data.worlds.remove(world)
             world = None
@@ -256,6 +263,8 @@ def uninstall_sky(scene: bpy.types.Scene) -> None:
                 warnings.simplefilter("ignore", DeprecationWarning)
                 world.use_nodes = False
     del scene[STATE_KEY]
+    if ORIGINAL_WORLD_KEY in scene:
+        del scene[ORIGINAL_WORLD_KEY]
     registry.remove_unused((stamps.SKY, stamps.SKY_LIGHTING, stamps.SKY_VIEW))
 
 
