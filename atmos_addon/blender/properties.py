@@ -324,7 +324,8 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
     )
     sun_object: PointerProperty(
         name="Sun",
-        description="The sun lamp whose direction lights the atmosphere (empty: the first sun lamp in the scene)",
+        description=("The sun lamp whose direction lights the atmosphere (empty: the first sun lamp in the scene that "
+                     "renders)"),
         type=bpy.types.Object,
         poll=_poll_sun,
         update=_on_parameter,

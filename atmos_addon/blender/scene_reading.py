@@ -29,14 +29,14 @@ def groups() -> ModuleType:
 
 
 def sun_object(scene):
-    """The sun lamp that drives the atmosphere: ``scene.atmos.sun_object``, else the first sun lamp in the scene."""
+    """The sun lamp that drives the atmosphere: ``scene.atmos.sun_object``, else the first sun lamp in the scene that
+    renders, else the first sun lamp. (A lamp switched off for renders, an alternative kept in the file, was picked
+    when it came first, until December 2026: the sky's sun then stood where no light came from.)"""
     chosen = scene.atmos.sun_object
     if chosen is not None and chosen.type == "LIGHT" and chosen.data.type == "SUN":
         return chosen
-    for obj in scene.objects:
-        if obj.type == "LIGHT" and obj.data.type == "SUN":
-            return obj
-    return None
+    suns = [obj for obj in scene.objects if obj.type == "LIGHT" and obj.data.type == "SUN"]
+    return next((obj for obj in suns if not obj.hide_render), suns[0] if suns else None)
 
 
 def direction_of(lamp) -> tuple[np.ndarray, str]:

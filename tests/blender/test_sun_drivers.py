@@ -203,3 +203,22 @@ def test_a_lamp_a_rig_drives_keeps_its_drivers(addon):
     assert _driven(lamp.data) == {("energy", 0)} and not _driven(scene)
     bpy.context.view_layer.update()
     assert lamp.data.energy == pytest.approx(7.0)
+
+
+def test_a_sun_lamp_switched_off_for_renders_is_not_the_one_driven(addon):
+    """With no lamp picked Atmos takes the first sun lamp that renders: a lamp switched off for renders (an
+    alternative kept in the file) that came first was driven until December 2026, its direction the sky's sun while
+    the light came from another. With none that renders, the first is used."""
+    scene = addon
+    ru.make_camera(scene, location=(0.0, 0.0, 2.0), rotation_euler=(math.radians(85.0), 0.0, 0.0))
+    spare = _user_sun(scene, "A Spare Sun", (1.0, 0.5, 0.5), 2.0)
+    spare.hide_render = True
+    key = _user_sun(scene, "Key Sun")
+    assert [obj.name for obj in scene.objects if obj.type == "LIGHT"][0] == spare.name   # the spare comes first
+    orchestrator.enable_effect(scene)
+    bpy.context.view_layer.update()
+    assert scene_reading.sun_object(scene) == key
+    assert _driven(key.data) == LIGHT_PATHS and not _driven(spare.data)
+    assert tuple(spare.data.color) == pytest.approx((1.0, 0.5, 0.5)) and spare.data.energy == pytest.approx(2.0)
+    key.hide_render = True
+    assert scene_reading.sun_object(scene) == spare   # none renders: the first

@@ -354,7 +354,7 @@ def test_the_lamp_field_shows_the_lamp_in_use(user_presets):
     scene = bpy.context.scene
     assert ("placeholder", "sun_object", "No sun lamp: Atmos adds one") in draw_everything(scene)
     sun = add_sun(scene)
-    assert ("placeholder", "sun_object", f"{sun.name} (first sun lamp)") in draw_everything(scene)
+    assert ("placeholder", "sun_object", f"{sun.name} (first rendered sun)") in draw_everything(scene)
     scene.atmos.sun_object = sun
     assert ("placeholder", "sun_object", "") in draw_everything(scene)
 

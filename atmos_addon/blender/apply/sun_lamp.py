@@ -33,7 +33,7 @@ WRITE_TOLERANCE = 1.0e-6
 
 
 def ensure_sun_lamp(scene: bpy.types.Scene) -> tuple[bpy.types.Object, str]:
-    """The scene's sun lamp (``atmos.sun_object``, else the first sun lamp), created if there is none.
+    """The scene's sun lamp (``atmos.sun_object``, else the first sun lamp that renders), created if there is none.
 
     Returns the lamp and a sentence for the report. A created lamp is named "Atmos Sun", linked to the
     scene's master collection, points 45 degrees up toward north, and is remembered so disabling removes it.

@@ -161,11 +161,12 @@ def _active_when_on(layout, settings):
 
 
 def lamp_placeholder(scene) -> str:
-    """What the empty Lamp field shows: the lamp Atmos uses instead (the first sun lamp), or that none is there."""
+    """What the empty Lamp field shows: the lamp Atmos uses instead (the first sun lamp that renders), or that none is
+    there."""
     lamp = scene_reading.sun_object(scene)
     if scene.atmos.sun_object is not None:
         return ""
-    return f"{lamp.name} (first sun lamp)" if lamp is not None else "No sun lamp: Atmos adds one"
+    return f"{lamp.name} (first rendered sun)" if lamp is not None else "No sun lamp: Atmos adds one"
 
 
 def viewport_compositor_always(context) -> bool:
