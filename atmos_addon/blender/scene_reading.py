@@ -35,8 +35,14 @@ def sun_object(scene):
     chosen = scene.atmos.sun_object
     if chosen is not None and chosen.type == "LIGHT" and chosen.data.type == "SUN":
         return chosen
-    suns = [obj for obj in scene.objects if obj.type == "LIGHT" and obj.data.type == "SUN"]
-    return next((obj for obj in suns if not obj.hide_render), suns[0] if suns else None)
+    first = None
+    for obj in scene.objects:   # stops at the first that renders: called on every sync, over every object
+        if obj.type == "LIGHT" and obj.data.type == "SUN":
+            if not obj.hide_render:
+                return obj
+            if first is None:
+                first = obj
+    return first
 
 
 def direction_of(lamp) -> tuple[np.ndarray, str]:
