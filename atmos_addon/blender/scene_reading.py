@@ -120,6 +120,11 @@ def moves_over_time(obj) -> bool:
     return False
 
 
+def rendered_view_layers(scene) -> list:
+    """The view layers a render of ``scene`` renders: those with *Use for Rendering*, all of them when none has it."""
+    return [layer for layer in scene.view_layers if layer.use] or list(scene.view_layers)
+
+
 def switches_camera(scene) -> bool:
     """True if a timeline marker binds a camera other than the scene's: the render switches to it at the marker's
     frame (a cut), so the camera the tables are measured from changes over time."""

@@ -9,11 +9,7 @@ evaluated, so the tests call ``bpy.context.view_layer.update()`` after a change 
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import subprocess
-import sys
 import textwrap
 import warnings
 from pathlib import Path
@@ -289,15 +285,8 @@ def test_farm_render_without_the_addon_matches(tmp_path: Path, quality: str) -> 
     bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
     home = tmp_path / "home"
     home.mkdir()
-    env = {key: value for key, value in os.environ.items() if not key.startswith(("PYTHON", "BLENDER_"))}
-    env["HOME"] = str(home)
-    script = tmp_path / "farm.py"
-    script.write_text(FARM_SCRIPT)
     out = tmp_path / "farm"
-    result = subprocess.run([sys.executable, "-I", str(script), str(blend), str(out)], cwd=str(tmp_path),
-                            env=env, capture_output=True, text=True, timeout=180)
-    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
-    assert json.loads(result.stdout.strip().splitlines()[-1]) == {"addon_loaded": False}
+    assert render_utils.run_farm(home, [str(blend), str(out)], FARM_SCRIPT) == {"addon_loaded": False}
     farm = np.load(str(out) + ".npy")
     difference = float(np.max(np.abs(farm - session)))
     print(f"farm render: max abs difference {difference:.3g}")
@@ -308,14 +297,8 @@ def _farm_render(tmp_path: Path, blend: Path, frame: int) -> np.ndarray:
     """Render ``frame`` of ``blend`` in a fresh process that never imports the add-on (empty HOME)."""
     home = tmp_path / "home"
     home.mkdir(exist_ok=True)
-    env = {key: value for key, value in os.environ.items() if not key.startswith(("PYTHON", "BLENDER_"))}
-    env["HOME"] = str(home)
-    script = tmp_path / "farm.py"
-    script.write_text(FARM_SCRIPT)
     out = tmp_path / f"farm{frame}"
-    result = subprocess.run([sys.executable, "-I", str(script), str(blend), str(out), str(frame)],
-                            cwd=str(tmp_path), env=env, capture_output=True, text=True, timeout=180)
-    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    render_utils.run_farm(home, [str(blend), str(out), str(frame)], FARM_SCRIPT)
     return np.load(str(out) + ".npy")
 
 

@@ -37,6 +37,7 @@ import bpy
 from ... import nodes
 from ...plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_TRANSMITTANCE, AOV_VIEW, AOVS
 from .. import drivers
+from ..scene_reading import rendered_view_layers
 from ..tree_edits import TAG
 
 GROUP_NAME = nodes.stamps.COMPOSITE.name
@@ -161,7 +162,7 @@ def shown_view_layer(scene):
     context_layer = getattr(bpy.context, "view_layer", None)
     if scene.render.use_single_layer and getattr(bpy.context, "scene", None) == scene and context_layer is not None:
         return context_layer
-    return next((layer for layer in scene.view_layers if layer.use), scene.view_layers[0])
+    return rendered_view_layers(scene)[0]
 
 
 #: The Render Layers output that bounds the coverage (:mod:`atmos_addon.nodes.composite`).

@@ -34,6 +34,7 @@ import bpy
 
 from ...nodes import stamps, surface
 from ...plan import AOVS
+from ..scene_reading import rendered_view_layers
 from ..tree_edits import (TAG, active_of, copy_input, cycles_of, cycles_output, free_spot, output_nodes, place_last,
                           remove_tagged, surface_link, take_over_cycles_output)
 
@@ -107,7 +108,7 @@ def scene_materials(scene) -> tuple[list, list[str]]:
                 seen[key] = material
         if not found:
             bare.append(obj)
-    layers = [layer for layer in scene.view_layers if layer.use] or list(scene.view_layers)
+    layers = rendered_view_layers(scene)
     overrides = [layer.material_override for layer in layers]
     for material in overrides:
         if material is not None:

@@ -149,6 +149,7 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
         return f"Sky: in world '{world.name}'"
     state: dict = {}
     keeping = sharing_scenes(scene, world)
+    original = None
     if world is None:
         world = bpy.data.worlds.new(CREATED_WORLD_NAME)
         scene.world = world
@@ -160,7 +161,6 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
             world = original.copy()
             world.name = f"{original.name} (Atmos)"
             scene.world = world
-            state["copied_from"] = original.name
             scene[ORIGINAL_WORLD_KEY] = original   # an ID reference: a linked world no scene uses is kept on save
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)
@@ -202,12 +202,12 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
     registry.remove_unused((stamps.SKY_LIGHTING,))   # that of a world deleted since: the new one takes its name
     _add_lighting_branch(tree, features, background)
     scene[STATE_KEY] = state
-    if "copied_from" in state and not keeping:
-        return (f"Sky: in world '{world.name}', a copy of '{state['copied_from']}', which is linked from a library "
+    if original is not None and not keeping:
+        return (f"Sky: in world '{world.name}', a copy of '{original.name}', which is linked from a library "
                 "(not editable)")
-    if "copied_from" in state:
+    if original is not None:
         names = ", ".join(f"'{other.name}'" for other in keeping)
-        return (f"Sky: in world '{world.name}', a copy of '{state['copied_from']}', which scene(s) {names} keep "
+        return (f"Sky: in world '{world.name}', a copy of '{original.name}', which scene(s) {names} keep "
                 "(they share it and have no Atmos sky)")
     return f"Sky: in world '{world.name}'" + (" (created)" if "created_world" in state else "")
 
@@ -229,10 +229,10 @@ def uninstall_sky(scene: bpy.types.Scene) -> None:
     state = state.to_dict() if hasattr(state, "to_dict") else dict(state)
     world = bpy.data.worlds.get((state.get("world", ""), None))
     created = state.get("created_world")
-    copied_from = state.get("copied_from")
-    if world is not None and copied_from is not None:   # the scene's own copy: the scene gets the original back
+    original = scene.get(ORIGINAL_WORLD_KEY)
+    if world is not None and original is not None:   # the scene's own copy: the scene gets the original back
         if scene.world == world:
-            scene.world = scene.get(ORIGINAL_WORLD_KEY) or bpy.data.worlds.get((copied_from, None))
+            scene.world = original
         if world.users == 0:
             bpy.data.worlds.remove(world)
             world = None
