@@ -226,11 +226,9 @@ def clear_retired_parameters(scene: bpy.types.Scene) -> bool:
 def _remove_parameters(scene: bpy.types.Scene, names: tuple[str, ...]) -> None:
     animation = scene.animation_data
     if animation is not None and animation.action is not None:
-        for name in names:
-            path = f'["{name}"]'
-            for fcurve in fcurves_of(animation.action):
-                if fcurve.data_path == path:
-                    remove_fcurve(animation.action, fcurve)
+        paths = {f'["{name}"]' for name in names}
+        for fcurve in [c for c in fcurves_of(animation.action) if c.data_path in paths]:   # read all, then remove
+            remove_fcurve(animation.action, fcurve)
     for name in names:
         if name in scene:
             del scene[name]
@@ -245,12 +243,17 @@ def _as_tuple(value) -> tuple[float, ...] | float:
 
 
 def fcurves_of(action: bpy.types.Action) -> list[bpy.types.FCurve]:
-    """Every F-curve of ``action`` (Blender 4.4+ layered actions keep them in channelbags)."""
-    curves = list(getattr(action, "fcurves", None) or [])
+    """Every F-curve of ``action``, each once (Blender 4.4+ layered actions keep them in channelbags).
+
+    Blender 4.4 and 4.5 also offer a layered action's first slot's curves as ``action.fcurves``: listing both gave
+    those curves twice, and removing a curve then left its second entry pointing at freed memory."""
+    curves = []
     for layer in getattr(action, "layers", ()):
         for strip in layer.strips:
             for channelbag in getattr(strip, "channelbags", ()):
                 curves.extend(channelbag.fcurves)
+    if not curves:   # a legacy action (Blender before 4.4, or one not yet upgraded)
+        curves = list(getattr(action, "fcurves", None) or [])
     return curves
 
 

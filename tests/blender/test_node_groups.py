@@ -25,6 +25,7 @@ from atmos_addon.nodes import (AERIAL_PARAMETER_NAMES, GROUP_NAME, OUTPUT_INSCAT
                          OUTPUT_TRANSMITTANCE, AerialFeatures, clear_shader_parameters, describe_features,
                          ensure_aerial_perspective_group, node_count, read_shader_parameters, write_shader_parameters)
 from atmos_addon.nodes import parts, stamps
+from atmos_addon.nodes.parameters import fcurves_of, remove_fcurve
 from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
 
 WIDTH, HEIGHT = 12, 8
@@ -327,6 +328,25 @@ def test_parameters_round_trip_validate_and_clear():
     scene.keyframe_insert('["atmos_sun_direction"]', frame=1)
     clear_shader_parameters(scene)
     assert all(value is None for value in read_shader_parameters(scene).values())
+    assert scene.animation_data.action is None or not fcurves_of(scene.animation_data.action)
+
+
+def test_fcurves_of_lists_each_curve_once():
+    """Blender 4.4-4.5 show a layered action's first slot as ``action.fcurves`` as well as in its channelbag: each
+    curve is listed once, so removing one never leaves a second entry pointing at freed memory (4.5.15 once read
+    such an entry's data path as garbage in CI)."""
+    scene = ru.reset_scene()
+    scene["atmos_test_vector"] = (1.0, 2.0, 3.0)
+    scene["atmos_test_scalar"] = 1.0
+    scene.keyframe_insert('["atmos_test_vector"]', frame=1)
+    scene.keyframe_insert('["atmos_test_scalar"]', frame=1)
+    action = scene.animation_data.action
+    curves = fcurves_of(action)
+    assert sorted((c.data_path, c.array_index) for c in curves) == [
+        ('["atmos_test_scalar"]', 0), ('["atmos_test_vector"]', 0), ('["atmos_test_vector"]', 1),
+        ('["atmos_test_vector"]', 2)]
+    remove_fcurve(action, next(c for c in curves if c.data_path == '["atmos_test_vector"]'))
+    assert len(fcurves_of(action)) == 3
 
 
 def test_keyframed_sun_direction_renders_per_frame_in_cycles():
