@@ -191,7 +191,10 @@ def main(argv=None) -> int:
                  f"(physics.balanced.PER_PIXEL_PIECES pieces, the sun at their middles).\n\n{table}\n\nWhat Precise's multiple-scattering term adds (ratio to its "
                  f"single scattering, minus 1) and the bake time of one tile (sun and camera tables warm):\n\n"
                  f"{ms_table}\n"
-                 + ("\n![error against node count](quality_tradeoff.png)\n" if plot else "")
+                 # the plot kept where this machine cannot draw it (its errors are single scattering's, whose
+                 # model changes far less often than the multiple-scattering term)
+                 + ("\n![error against node count](quality_tradeoff.png)\n"
+                    if plot or (docs / "quality_tradeoff.png").exists() else "")
                  + end)
         if start in text and end in text:
             text = text[:text.index(start)] + block + text[text.index(end) + len(end):]
