@@ -312,38 +312,71 @@ def _direction_grid(n_zenith: int, n_azimuth: int) -> tuple[np.ndarray, np.ndarr
     return dirs.reshape(-1, 3), np.repeat(dz * (2.0 * np.pi / n_azimuth), n_azimuth)
 
 
-#: The forward peak of the haze's phase function within this angle of straight on is carried as not scattered when
-#: the table scatters the first order once more (:func:`grid_forward_fraction`); the rest is scattered on the
-#: direction grid. Chosen by the accuracy bench over 20-35 deg (docs/quality.md): a narrower cut sends light the grid
-#: cannot place (its azimuth step is 22.5 deg) off the sun's line, a wider one keeps too much of it on that line.
+#: The forward peak of the haze's phase function within an angle of straight on is carried as not scattered when the
+#: table scatters the first order once more (:func:`grid_forward_fraction`); the rest is scattered on the direction
+#: grid. A narrower cut sends light the grid cannot place (its azimuth step is 22.5 deg) off the sun's line, a wider
+#: one keeps too much of it on that line. The angle grows with the haze's g (:func:`grid_cut_deg`): this many degrees
+#: at :data:`GRID_CUT_REFERENCE_G`, the Earth presets' clear haze (the bench's day, sunset and blue-hour cases).
 GRID_FORWARD_CUT_DEG = 30.0
-_CUT_COSINE = math.cos(math.radians(GRID_FORWARD_CUT_DEG))
+#: The haze g at which the cut is :data:`GRID_FORWARD_CUT_DEG`.
+GRID_CUT_REFERENCE_G = 0.76
+#: How the cut grows with g, deg per unit of g (6 deg per 0.1), and its bounds, deg (the range the bench swept).
+GRID_CUT_DEG_PER_G = 60.0
+GRID_CUT_RANGE_DEG = (20.0, 35.0)
+
+
+def grid_cut_deg(g: ArrayLike) -> np.ndarray:
+    """The forward cut per channel, deg: :data:`GRID_FORWARD_CUT_DEG` + :data:`GRID_CUT_DEG_PER_G` (g - 0.76), within
+    :data:`GRID_CUT_RANGE_DEG`.
+
+    Why it follows g: one angle for every channel left Mars's dust (g 0.63 / 0.68 / 0.78) with red and green 2-6 %
+    too bright and blue 2-10 % too dark at a 2 deg sun (5.6 % in luminance against 192 000 reference paths); a
+    narrower cut for all channels darkens red and green but blue too (25 deg: 3.3 %, xy 0.0124), so the sweep went per
+    channel: the less forward a channel's haze, the narrower the cut it wants (Mars 25 / 25 / 30 deg: 3.6 %, xy
+    0.0073; the overcast's g 0.6 was already best at 20 deg, 3.5 % against 3.8 %). The line through those points
+    gives Mars 21.9 / 25 / 31.2 deg (3.6 %, xy 0.0057) and leaves every case of g 0.76 as it was (docs/quality.md,
+    stop 52)."""
+    g = np.asarray(g, dtype=np.float64)
+    return np.clip(GRID_FORWARD_CUT_DEG + GRID_CUT_DEG_PER_G * (g - GRID_CUT_REFERENCE_G), *GRID_CUT_RANGE_DEG)
 
 
 def grid_forward_fraction(atm: Atmosphere) -> np.ndarray:
-    """f_c (3,): the share of the haze's scattering above the Henyey-Greenstein value at :data:`GRID_FORWARD_CUT_DEG`
-    inside that cone (the peak the direction grid cannot resolve), per channel (:func:`_cone_fraction`)."""
+    """f_c (3,): the share of the haze's scattering above the Henyey-Greenstein value at the cut
+    (:func:`grid_cut_deg`) inside that cone (the peak the direction grid cannot resolve), per channel
+    (:func:`_cone_fraction`)."""
     return _cone_fraction(_mie_g(atm))
 
 
+def _cut_cosine(g: np.ndarray) -> np.ndarray:
+    """cos of :func:`grid_cut_deg` per channel (3,)."""
+    return np.cos(np.radians(grid_cut_deg(g)))
+
+
+def _hg_at_cut(g: np.ndarray) -> np.ndarray:
+    """Henyey-Greenstein at each channel's own cut (3,)."""
+    mu_c = _cut_cosine(g)
+    return (1.0 - g * g) / (4.0 * np.pi * (1.0 + g * g - 2.0 * g * mu_c) ** 1.5)
+
+
 def _cone_fraction(g: np.ndarray) -> np.ndarray:
-    """:func:`grid_forward_fraction` of Henyey-Greenstein g (3,); 0 where g <= 0 (no forward peak). Closed form:
-    2 pi integral_{mu_c}^1 (Phi(mu) - Phi(mu_c)) dmu, with
+    """:func:`grid_forward_fraction` of Henyey-Greenstein g (3,); 0 where g <= 0 (no forward peak). Closed form, mu_c
+    the channel's cut cosine: 2 pi integral_{mu_c}^1 (Phi(mu) - Phi(mu_c)) dmu, with
     2 pi integral_{mu_c}^1 Phi dmu = (1 - g^2) / (2 g) (1 / (1 - g) - 1 / sqrt(1 + g^2 - 2 g mu_c))."""
     g = np.asarray(g, dtype=np.float64)
-    mu_c = _CUT_COSINE
     safe = np.where(g > 0.0, g, 0.5)
+    mu_c = _cut_cosine(safe)
     cone = (1.0 - safe ** 2) / (2.0 * safe) * (1.0 / (1.0 - safe) - 1.0 / np.sqrt(1.0 + safe ** 2 - 2.0 * safe * mu_c))
-    flat = 2.0 * np.pi * (1.0 - mu_c) * phase_hg(mu_c, safe)
+    flat = 2.0 * np.pi * (1.0 - mu_c) * _hg_at_cut(safe)
     return np.where(g > 0.0, np.maximum(cone - flat, 0.0), 0.0)
 
 
 def _cut_phase_hg(mu: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """Henyey-Greenstein (..., 3) with its forward cone (within :data:`GRID_FORWARD_CUT_DEG`, where g > 0) flattened
-    to the value at the cone's edge: the part of the phase function left once :func:`grid_forward_fraction` is
-    taken out (not normalised)."""
+    """Henyey-Greenstein (..., 3) with its forward cone (within each channel's cut, :func:`grid_cut_deg`, where
+    g > 0) flattened to the value at the cone's edge: the part of the phase function left once
+    :func:`grid_forward_fraction` is taken out (not normalised)."""
     mu = np.asarray(mu)
-    return np.where((mu[..., None] > _CUT_COSINE) & (g > 0.0), phase_hg(_CUT_COSINE, g), phase_hg(mu, g))
+    safe = np.where(g > 0.0, g, 0.5)
+    return np.where((mu[..., None] > _cut_cosine(safe)) & (g > 0.0), _hg_at_cut(safe), phase_hg(mu, g))
 
 
 def _cell_weights(views: np.ndarray, n_zenith: int, n_azimuth: int, phase: Callable, sub: int = 8) -> np.ndarray:
@@ -586,7 +619,8 @@ class MultipleScatteringTable:
 
     * The first order, by direction: the sun's beam (true transmittance T_sun) scattered with the true phase functions,
       carried to x with T_c, the transmittance less only the part of the haze's peak the direction grid cannot
-      resolve, f_c (:func:`grid_forward_fraction`, the peak above its value :data:`GRID_FORWARD_CUT_DEG` off):
+      resolve, f_c (:func:`grid_forward_fraction`: the peak above its value at the channel's cut,
+      :func:`grid_cut_deg`):
 
         L_1(x, w) = integral T_c (beta_R n_R Phi_R + beta_M n_M Phi_HG)(w . sun) T_sun dt
                     + T_c,g T_sun mu_s,g albedo / pi
@@ -665,6 +699,10 @@ class MultipleScatteringTable:
       5.3 % and 0.0092 before), the Martian sunset 5.6 % (xy 0.0097; 5.75 %); against 96 000 paths the overcast
       2.6 % (2.4 %: its 1 deg sun sat by a node, 0.9 deg, that the new nodes, 0.8 and 1.8 deg, moved away from;
       over every sun the new nodes' interpolation is the closer, :class:`SunCosineNodes`).
+    * With the forward cut following each channel's g (stop 52, :func:`grid_cut_deg`: 30 deg at the clear haze's
+      0.76, so every Earth case but the overcast is unchanged; Mars's dust 22 / 25 / 31 deg): the Martian sunset
+      3.7 % (xy 0.0058; 5.6 % and 0.0097 before) against 192 000 paths, the overcast 2.9 % against 96 000 (2.6 %
+      before: 0.3 point, within its reference's noise of 1.1-1.4 % a ray), Mars at noon 0.4 % against 64 000 (0.3 %).
 
     The directions, steps and view grid were chosen by the bench (more directions change no day case by over 0.5 %
     and the low suns by a few %); 24 altitudes and 16 steps since stop 46 (32 and 24 before: twice the build, the

@@ -2,6 +2,7 @@
 """The Precise level: its tables against direct quadrature, the shader's sampling, stability at the extremes."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -499,6 +500,34 @@ def test_the_multiply_scattered_light_of_a_martian_sunset_keeps_its_direction():
     for side, label, low, high in ((toward, "toward", 0.92, 1.08), (~toward, "away", 0.85, 1.25)):
         ratio = float(np.mean(ratios[side]))
         assert low < ratio < high, (label, ratio)
+
+
+@pytest.mark.parametrize("name", ["mars_sunset"])
+def test_the_default_meets_the_low_sun_targets_against_the_stored_complete_reference(name):
+    """The issue's targets for a sunset (luminance within 5 %, CIE xy within 0.01) against the complete reference at
+    192 000 paths a ray and channel (two seeds averaged; stored by ``tools/store_complete_reference.py``, whose
+    command the file holds: ten minutes to trace, so CI reads it). Measured: the Martian sunset 3.7 %, xy 0.0058 since
+    the forward cut follows each channel's g (stop 52, ``precise.grid_cut_deg``); with one 30 deg cut for every
+    channel 5.6 %, xy 0.0097 (red and green 2-6 % too bright, blue 2-10 % too dark)."""
+    from atmos_addon.physics.quality import bench_case, errors_of, reference
+
+    stored = np.load(Path(__file__).resolve().parent / "data" / f"complete_{name}.npz")
+    case = bench_case(name)
+    tile = bake_tile(case.atmosphere, case.camera_altitude_m, math.radians(case.sun_elevation_deg))
+    value = evaluate(tile, case.view_dirs, case.sun_dir, case.distances_m, case.atmosphere, np.float64)
+    errors = errors_of(case, value, (reference(case)[0], stored["l_in"]))
+    assert errors["luminance_max"] < 0.05 and errors["xy_max"] < 0.01, (errors["luminance_max"], errors["xy_max"])
+
+
+def test_the_forward_cut_grows_with_the_hazes_g():
+    """30 deg at the clear haze's g (every Earth case of the bench as it was), 6 deg per 0.1 of g, within 20-35 deg;
+    the share of the peak carried on the sun's line grows with g."""
+    from atmos_addon.physics.precise import _cone_fraction, grid_cut_deg
+
+    np.testing.assert_allclose(grid_cut_deg([0.6, 0.68, 0.76, 0.78, 0.9, -0.5]), [20.4, 25.2, 30.0, 31.2, 35.0, 20.0])
+    fractions = _cone_fraction(np.array([0.63, 0.68, 0.78]))
+    assert 0.0 < fractions[0] < fractions[1] < fractions[2] < 0.78 ** 2
+    assert _cone_fraction(np.array([-0.3, 0.0, 0.5]))[:2].tolist() == [0.0, 0.0]
 
 
 def test_a_high_sun_keeps_the_difference_between_toward_and_away():

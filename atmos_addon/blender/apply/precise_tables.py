@@ -41,9 +41,9 @@ _TILES = "atmos_tiles"
 #: Bumped when the same inputs bake a different table (2: key tiles blended instead of a tile per frame, 3: the
 #: camera's sky view after the sky view, 4: the multiple-scattering table's first order scattered once more by
 #: direction, stop 47, 5: its sun-cosine nodes even in elevation above 23 deg and one cell below -23 deg, stop 48,
-#: 6: their cells growing geometrically from the horizon within +-23 deg, stop 49), so a file saved before
-#: re-bakes on opening (:func:`follow`), its key tiles included.
-_LAYOUT = 6
+#: 6: their cells growing geometrically from the horizon within +-23 deg, stop 49, 7: the forward cut growing with
+#: the haze's g, stop 52), so a file saved before re-bakes on opening (:func:`follow`), its key tiles included.
+_LAYOUT = 7
 #: Image property: the :data:`_LAYOUT` its tiles were written with.
 _LAYOUT_KEY = "atmos_layout"
 
