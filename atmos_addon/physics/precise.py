@@ -333,8 +333,8 @@ def grid_cut_deg(g: ArrayLike) -> np.ndarray:
     too bright and blue 2-10 % too dark at a 2 deg sun (5.6 % in luminance against 192 000 reference paths); a
     narrower cut for all channels darkens red and green but blue too (25 deg: 3.3 %, xy 0.0124), so the sweep went per
     channel: the less forward a channel's haze, the narrower the cut it wants (Mars 25 / 25 / 30 deg: 3.6 %, xy
-    0.0073; the overcast's g 0.6 was already best at 20 deg, 3.5 % against 3.8 %). The line through those points
-    gives Mars 21.9 / 25 / 31.2 deg (3.6 %, xy 0.0057) and leaves every case of g 0.76 as it was (docs/quality.md,
+    0.0073; the overcast's g 0.6 was already best at 20 deg, 3.5 % against 3.8 %). This line through them gives
+    Mars 22.2 / 25.2 / 31.2 deg (3.65 %, xy 0.0058) and leaves every case of g 0.76 as it was (docs/quality.md,
     stop 52)."""
     g = np.asarray(g, dtype=np.float64)
     return np.clip(GRID_FORWARD_CUT_DEG + GRID_CUT_DEG_PER_G * (g - GRID_CUT_REFERENCE_G), *GRID_CUT_RANGE_DEG)
@@ -1157,9 +1157,10 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     triangle (r_c, r_p, d), sin e = (r_p^2 - r_c^2 - d^2) / (2 r_c d), clamped to a vertical ray where the
     altitude cannot be reached at that distance. The ray is integrated by Simpson's rule in w = sqrt(t / d) on
     :data:`RAY_SAMPLES` samples (dense near the camera), the optical depth to each sample by the trapezoid rule
-    on the same samples. The rows are integrated in blocks of :data:`TILE_BLOCK_ROWS` on :data:`WORKERS` threads
-    (0.75 s a tile on one thread; on 2 cores 0.43-0.55 s in one block per thread, 0.33-0.36 s in blocks of 4 rows,
-    whose arrays stay in the processor's cache; the same numbers to the bit).
+    on the same samples. The rows are integrated in blocks of :data:`TILE_BLOCK_ROWS` on :data:`WORKERS` threads,
+    each block's arrays small enough to stay in the processor's cache (``tools/bench_tables.py``, the code before
+    in a worktree, interleaved, stop 52: 0.87-1.23 s -> 0.50-0.57 s a tile on one thread, 0.54-0.71 s in one block
+    per thread -> 0.33-0.40 s on 2 cores; the same numbers to the bit).
     """
     h_c = max(float(camera_altitude_m), 0.0)
     sun_table, ms_table = (atmosphere_tables(atm, tuple(float(a) for a in ground_albedo), preview=preview)
