@@ -242,30 +242,25 @@ def _as_tuple(value) -> tuple[float, ...] | float:
     return tuple(float(v) for v in value)
 
 
-def fcurves_of(action: bpy.types.Action) -> list[bpy.types.FCurve]:
-    """Every F-curve of ``action``, each once (Blender 4.4+ layered actions keep them in channelbags).
+def _curve_lists(action: bpy.types.Action) -> list:
+    """The collections that hold ``action``'s F-curves, each once: its channelbags (Blender 4.4+ layered actions), or
+    for a legacy action (before 4.4, or one not yet upgraded) its own list. Blender 4.4 and 4.5 also offer a layered
+    action's first slot's curves as ``action.fcurves``: listing both gave those curves twice, and removing a curve
+    then left its second entry pointing at freed memory."""
+    bags = [channelbag.fcurves for layer in getattr(action, "layers", ()) for strip in layer.strips
+            for channelbag in getattr(strip, "channelbags", ())]
+    legacy = getattr(action, "fcurves", None)
+    return bags if any(len(bag) for bag in bags) or legacy is None else [legacy]
 
-    Blender 4.4 and 4.5 also offer a layered action's first slot's curves as ``action.fcurves``: listing both gave
-    those curves twice, and removing a curve then left its second entry pointing at freed memory."""
-    curves = []
-    for layer in getattr(action, "layers", ()):
-        for strip in layer.strips:
-            for channelbag in getattr(strip, "channelbags", ()):
-                curves.extend(channelbag.fcurves)
-    if not curves:   # a legacy action (Blender before 4.4, or one not yet upgraded)
-        curves = list(getattr(action, "fcurves", None) or [])
-    return curves
+
+def fcurves_of(action: bpy.types.Action) -> list[bpy.types.FCurve]:
+    """Every F-curve of ``action``, each once (:func:`_curve_lists`)."""
+    return [curve for curves in _curve_lists(action) for curve in curves]
 
 
 def remove_fcurve(action: bpy.types.Action, fcurve: bpy.types.FCurve) -> None:
-    """Remove ``fcurve`` from whichever container of ``action`` holds it."""
-    legacy = getattr(action, "fcurves", None)
-    if legacy is not None and any(c == fcurve for c in legacy):
-        legacy.remove(fcurve)
-        return
-    for layer in getattr(action, "layers", ()):
-        for strip in layer.strips:
-            for channelbag in getattr(strip, "channelbags", ()):
-                if any(c == fcurve for c in channelbag.fcurves):
-                    channelbag.fcurves.remove(fcurve)
-                    return
+    """Remove ``fcurve`` from whichever collection of ``action`` holds it."""
+    for curves in _curve_lists(action):
+        if any(c == fcurve for c in curves):
+            curves.remove(fcurve)
+            return

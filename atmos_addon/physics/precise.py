@@ -353,9 +353,8 @@ def _cut_cosine(g: np.ndarray) -> np.ndarray:
 
 
 def _hg_at_cut(g: np.ndarray) -> np.ndarray:
-    """Henyey-Greenstein at each channel's own cut (3,)."""
-    mu_c = _cut_cosine(g)
-    return (1.0 - g * g) / (4.0 * np.pi * (1.0 + g * g - 2.0 * g * mu_c) ** 1.5)
+    """Henyey-Greenstein at each channel's own cut (3,): the diagonal of every cut against every channel's g."""
+    return np.diagonal(phase_hg(_cut_cosine(g), g)).copy()
 
 
 def _cone_fraction(g: np.ndarray) -> np.ndarray:
