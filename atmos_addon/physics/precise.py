@@ -1144,13 +1144,18 @@ def _cached_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: f
     return tile
 
 
+class TileCancelled(Exception):
+    """Raised by :func:`integrate_tile` when its ``stop`` event is set."""
+
+
 def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, *,
                    multiple_scattering: bool = True, ground_albedo=DEFAULT_GROUND_ALBEDO,
                    shape: TableShape = DEFAULT_SHAPE, max_distance_m: float | None = None,
-                   preview: bool = False, tables: tuple | None = None) -> Tile:
+                   preview: bool = False, tables: tuple | None = None, stop: threading.Event | None = None) -> Tile:
     """Integrate one frame's table (module docstring), uncached (:func:`bake_tile` keeps the last ones); ``preview``
     reads the preview tables (:func:`atmosphere_tables`); ``tables``: the (sun transmittance, multiple-scattering)
-    tables to read instead (the tools that measure variants of them).
+    tables to read instead (the tools that measure variants of them); ``stop``: once set, the integration ends at
+    its next block of rows (20-40 ms) with :class:`TileCancelled` (a tile no longer wanted frees its thread).
 
     Each cell (target altitude h_p, azimuth a, distance d) is its own ray: the elevation follows from the
     triangle (r_c, r_p, d), sin e = (r_p^2 - r_c^2 - d^2) / (2 r_c d), clamped to a vertical ray where the
@@ -1174,6 +1179,8 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     a_m = np.zeros_like(a_r)
 
     def integrate(block: int) -> None:       # the rays ending at one block of target altitudes (rows)
+        if stop is not None and stop.is_set():
+            raise TileCancelled
         rows = blocks[block]
         r_p = all_rows[rows]
         d = distance_columns(shape, d_max)[None, None, :, None]                       # (1, 1, D, 1)
@@ -1224,6 +1231,8 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
 
     blocks = np.array_split(np.arange(shape.altitudes), max(WORKERS, shape.altitudes // TILE_BLOCK_ROWS))
     in_parallel(integrate, len(blocks))
+    if stop is not None and stop.is_set():
+        raise TileCancelled
     e_top = atm.sun_irradiance_top
     full = (shape.altitudes, shape.azimuths, shape.distances, 3)
     tile = Tile(shape, r_c, d_max, np.ascontiguousarray(np.broadcast_to(mean_extinction, full[:1] + full[2:])),
@@ -1739,6 +1748,118 @@ def blend_tiles(first: Tile, second: Tile, weight: float, camera_altitude_m: flo
                 lerp(first.sky_ground_transmittance, second.sky_ground_transmittance),
                 lerp(first.camera_sky_rayleigh, second.camera_sky_rayleigh),
                 lerp(first.camera_sky_mie, second.camera_sky_mie))
+
+
+# -- A still scene's sun moved: key tiles of its camera's altitude on the sun's key grid ----------------------------
+#
+# A still scene has one tile, baked for its sun's elevation, so a sun move needs a new one (0.3-0.4 s on 2 cores). In
+# the interface the tile is baked on a worker thread after the last move (blender/apply/precise_tables.py), so during
+# a drag the sky would stay where it was. The bank keeps key tiles of the camera's altitude at the sun elevations of
+# the key grid (SUN_STEPS_DEG: whole units of path_coordinates' sun axis), baked around the sun on the worker once
+# the exact tile is written: a move between two banked keys is shown at once as their blend (blend_tiles: the
+# animation's mid-step error, docs/quality.md, at most), and the exact tile follows.
+
+#: The grid's last key: the sun at the zenith.
+SUN_KEY_UNITS = int(round(float(path_coordinates(0.0, math.pi / 2.0)[0])))
+#: Key tiles the bank keeps (about 0.85 MB each): the keys around a sun, for a few atmospheres and cameras.
+BANK_TILES = 24
+_BANK: collections.OrderedDict = collections.OrderedDict()
+_BANK_LOCK = threading.Lock()
+
+
+def sun_key_elevation(unit: int) -> float:
+    """The sun elevation of key ``unit`` of the grid, rad: the inverse of :func:`path_coordinates`' sun axis at a
+    whole unit (0 at -90 deg, :data:`SUN_KEY_UNITS` at the zenith)."""
+    remaining = float(min(max(int(unit), 0), SUN_KEY_UNITS))
+    ceiling = 90.0
+    bands = []
+    for floor, step in SUN_STEPS_DEG:              # highest first, as path_coordinates reads them
+        bands.append((floor, ceiling, step))
+        ceiling = floor
+    for floor, ceiling, step in reversed(bands):   # from the nadir up
+        width = (ceiling - floor) / step
+        if remaining <= width or ceiling >= 90.0:
+            return math.radians(min(floor + remaining * step, 90.0))
+        remaining -= width
+    raise AssertionError("unreachable: the top band ends at the zenith")
+
+
+def sun_key_bracket(sun_elevation_rad: float) -> tuple[int, float]:
+    """(k, w): the sun lies between keys k and k + 1 of the grid, at weight w in [0, 1] (linear in the grid's unit,
+    as :func:`key_tiles` weighs a frame between its keys)."""
+    x = float(path_coordinates(0.0, float(sun_elevation_rad))[0])
+    k = min(max(int(math.floor(x)), 0), SUN_KEY_UNITS - 1)
+    return k, float(np.clip(x - k, 0.0, 1.0))
+
+
+def bank_units_around(sun_elevation_rad: float, count: int) -> list[int]:
+    """The ``count`` keys of the grid nearest the sun (at least the two around it): those two first, then outward,
+    the lower side first at each distance."""
+    k, _ = sun_key_bracket(sun_elevation_rad)
+    units = [k, k + 1]
+    below, above = k - 1, k + 2
+    while len(units) < count and (below >= 0 or above <= SUN_KEY_UNITS):
+        for unit in (below, above):
+            if 0 <= unit <= SUN_KEY_UNITS and len(units) < count:
+                units.append(unit)
+        below, above = below - 1, above + 1
+    return units
+
+
+def _bank_key(atm: Atmosphere, camera_altitude_m: float, unit: int, multiple_scattering: bool,
+              ground_albedo, shape: TableShape) -> tuple:
+    return (atm, float(camera_altitude_m), int(unit), bool(multiple_scattering),
+            tuple(float(a) for a in ground_albedo), shape)
+
+
+def bank_tile(atm: Atmosphere, camera_altitude_m: float, unit: int, *, multiple_scattering: bool = True,
+              ground_albedo=DEFAULT_GROUND_ALBEDO, shape: TableShape = DEFAULT_SHAPE,
+              stop: threading.Event | None = None) -> Tile | None:
+    """Key ``unit`` of the sun's grid for a camera at ``camera_altitude_m`` (its own largest distance, as a still
+    scene's tile): the bank's, or integrated (:func:`integrate_tile`) and kept (the last :data:`BANK_TILES`); None
+    when ``stop`` was set meanwhile (nothing kept). Thread-safe: the worker thread fills the bank while the main
+    thread reads it."""
+    key = _bank_key(atm, camera_altitude_m, unit, multiple_scattering, ground_albedo, shape)
+    with _BANK_LOCK:
+        if key in _BANK:
+            _BANK.move_to_end(key)
+            return _BANK[key]
+    try:
+        tile = integrate_tile(atm, camera_altitude_m, sun_key_elevation(unit),
+                              multiple_scattering=multiple_scattering, ground_albedo=ground_albedo, shape=shape,
+                              stop=stop)
+    except TileCancelled:
+        return None
+    with _BANK_LOCK:
+        _BANK[key] = tile
+        while len(_BANK) > BANK_TILES:
+            _BANK.popitem(last=False)
+    return tile
+
+
+def banked(atm: Atmosphere, camera_altitude_m: float, unit: int | None = None, *, multiple_scattering: bool = True,
+           ground_albedo=DEFAULT_GROUND_ALBEDO, shape: TableShape = DEFAULT_SHAPE) -> bool:
+    """True when the bank holds key ``unit`` for this camera altitude and atmosphere (``unit`` None: any key)."""
+    if unit is not None:
+        with _BANK_LOCK:
+            return _bank_key(atm, camera_altitude_m, unit, multiple_scattering, ground_albedo, shape) in _BANK
+    base = _bank_key(atm, camera_altitude_m, 0, multiple_scattering, ground_albedo, shape)
+    with _BANK_LOCK:
+        return any(key[:2] + key[3:] == base[:2] + base[3:] for key in _BANK)
+
+
+def tile_from_bank(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, *,
+                   multiple_scattering: bool = True, ground_albedo=DEFAULT_GROUND_ALBEDO,
+                   shape: TableShape = DEFAULT_SHAPE) -> Tile | None:
+    """The blend (:func:`blend_tiles`) of the bank's two keys around the sun, or None when either is not banked
+    (nothing is integrated here)."""
+    k, weight = sun_key_bracket(sun_elevation_rad)
+    keys = [_bank_key(atm, camera_altitude_m, unit, multiple_scattering, ground_albedo, shape) for unit in (k, k + 1)]
+    with _BANK_LOCK:
+        if not all(key in _BANK for key in keys):
+            return None
+        first, second = (_BANK[key] for key in keys)
+    return blend_tiles(first, second, weight, camera_altitude_m, atm)
 
 
 #: Rec. 709 luminance weights (Blender's default scene-linear space), for the blend's error.

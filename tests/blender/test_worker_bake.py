@@ -15,6 +15,7 @@ import threading
 
 import bpy
 import numpy as np
+import pytest
 
 import render_utils as ru
 from atmos_addon.blender import orchestrator, scene_reading
@@ -225,3 +226,81 @@ def test_a_save_writes_the_table_the_ui_left_for_later(addon, tmp_path):
     bpy.ops.wm.open_mainfile(filepath=str(path))
     assert _image()[precise_tables._KEY] == expected
     assert np.array_equal(_pixels(), written)
+
+
+def _tile_pixels(tile) -> np.ndarray:
+    """A one-tile image's pixels (RGBA, alpha 1) of ``tile``, as ``precise_tables.write_tiles`` lays them out."""
+    pixels = np.ones(tile.pixels().shape[:2] + (4,), np.float32)
+    pixels[..., :3] = tile.pixels()
+    return pixels.ravel()
+
+
+def test_a_sun_move_among_the_banked_keys_shows_their_blend_at_once_then_the_exact_tile(addon, monkeypatch):
+    """The UI's sun drag: once a still scene's tile is written, the worker bakes the keys of the sun's grid around it
+    (the bank); a move between two of them writes their blend at once, nothing integrated, its key marked as a
+    preview, and the debounced bake then writes the exact tile (the synchronous bake's). A move past the bank queues
+    the two keys around it; a camera altitude the bank has no key of, or an atmosphere whose tables are not built,
+    queues none (their own bakes come first)."""
+    from atmos_addon.physics import precise
+
+    monkeypatch.setattr(precise, "_BANK", precise.collections.OrderedDict())
+    scene = _scene(addon)                                 # sun at 20 deg: keys 20, 22, 18, 24, 16, 26
+    _move_sun(scene, 19.0)
+    precise_tables.bake_on_worker(scene)
+    precise_tables.wait_for_worker()                      # the exact tile written, then the bank's fill submitted
+    assert precise_tables._bank_jobs
+    assert precise_tables.wait_for_bank()
+    request = precise_tables._request(scene)
+    altitude = request.path.keys[0][0]
+    options = {"multiple_scattering": request.multiple, "ground_albedo": request.albedo}
+    assert all(precise.banked(request.atmosphere, altitude, unit, **options)
+               for unit in precise.bank_units_around(math.radians(19.0), precise_tables.BANK_SPAN))
+    assert not precise_tables.show_banked(scene)          # the image is the scene's: nothing to show
+    _move_sun(scene, 21.0)
+    moved = precise_tables._request(scene)
+    integrate = precise.integrate_tile
+    monkeypatch.setattr(precise, "integrate_tile", lambda *args, **kwargs: pytest.fail("integrated"))
+    assert precise_tables.show_banked(scene)
+    monkeypatch.setattr(precise, "integrate_tile", integrate)
+    assert _image()[precise_tables._KEY] == moved.key + precise_tables.PREVIEW_MARK
+    expected = precise.tile_from_bank(moved.atmosphere, altitude, moved.path.keys[0][1], **options)
+    first_look = _pixels()
+    assert np.array_equal(first_look, _tile_pixels(expected))
+    assert not precise_tables.show_banked(scene)          # written once per position
+    precise_tables.bake_on_worker(scene)                  # the debounced bake: the exact tile over it
+    precise_tables.wait_for_worker()
+    assert _image()[precise_tables._KEY] == moved.key
+    exact = _pixels()
+    relative = np.abs(first_look - exact) / np.maximum(np.abs(exact), 1e-3 * np.abs(exact).max())
+    assert 0.0 < np.percentile(relative, 99) < 0.01      # the animation's mid-step error by day
+    precise_tables.bake(scene, force=True)
+    assert np.array_equal(_pixels(), exact)
+    assert precise_tables.wait_for_bank()
+
+    _move_sun(scene, 31.0)                                # past the bank: the two keys around it are queued
+    assert not precise_tables.show_banked(scene)
+    k, _ = precise.sun_key_bracket(math.radians(31.0))
+    assert {key[2] for key in precise_tables._bank_jobs} == {k, k + 1}
+    assert precise_tables.wait_for_bank()
+    assert precise_tables.show_banked(scene)              # the next move there shows at once
+    precise_tables.fill_bank(scene)                       # keys under way when the scene's own bake is handed over:
+    jobs = list(precise_tables._bank_jobs.values())       # dropped, a running one stopped at its next block of rows
+    assert jobs
+    precise_tables.bake_on_worker(scene)
+    assert not precise_tables._bank_jobs and all(future.cancelled() or stop.is_set() for future, stop in jobs)
+    precise_tables.wait_for_worker()
+    assert _image()[precise_tables._KEY] == precise_tables._request(scene).key
+    assert precise_tables.wait_for_bank()
+
+    camera = scene.camera
+    with _handler_held():
+        camera.location.z += 200.0
+        bpy.context.view_layer.update()
+    assert not precise_tables.show_banked(scene) and not precise_tables._bank_jobs
+    with _handler_held():
+        camera.location.z -= 200.0
+        scene.atmos.mie_scattering_per_km = tuple(v * 1.2 for v in scene.atmos.mie_scattering_per_km)
+        bpy.context.view_layer.update()
+    assert not precise_tables.show_banked(scene) and not precise_tables._bank_jobs
+    precise_tables.cancel_pending()
+    assert not precise_tables._bank_jobs

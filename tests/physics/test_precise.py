@@ -736,6 +736,62 @@ def test_blended_key_tiles_follow_the_tile_baked_between_them():
             assert got_median < median and got_high < high, (first_key, second_key, name, error)
 
 
+def test_the_sun_key_grid_is_the_key_tiles_steps_and_brackets_every_sun():
+    """The bank's grid (a still scene's sun move in the UI): whole units of path_coordinates' sun axis, 2 deg apart
+    above 10 deg, 1 deg down to 3 deg, 0.5 deg below, from the nadir to the zenith; every sun lies between two keys
+    at the weight key_tiles would give it, and the keys around it come first."""
+    from atmos_addon.physics import precise
+
+    degrees = [math.degrees(precise.sun_key_elevation(unit)) for unit in range(precise.SUN_KEY_UNITS + 1)]
+    assert degrees[0] == -90.0 and degrees[-1] == pytest.approx(90.0)
+    steps = np.diff(degrees)
+    assert set(np.round(steps, 9)) == {0.5, 1.0, 2.0}
+    assert np.all(steps[np.array(degrees[:-1]) >= 10.0 - 1e-9] == pytest.approx(2.0))
+    assert np.all(steps[np.array(degrees[1:]) <= 3.0 + 1e-9] == pytest.approx(0.5))
+    assert np.allclose(path_coordinates(np.zeros(len(degrees)), np.radians(degrees))[:, 0], np.arange(len(degrees)),
+                       atol=1e-9)
+    for sun in (-12.3, -0.2, 0.0, 2.99, 3.0, 7.4, 10.0, 33.3, 89.9, 90.0):
+        k, weight = precise.sun_key_bracket(math.radians(sun))
+        low, high = degrees[k], degrees[k + 1]
+        assert low <= sun + 1e-9 and sun <= high + 1e-9 and 0.0 <= weight <= 1.0
+        assert weight == pytest.approx((sun - low) / (high - low), abs=1e-9)
+        units = precise.bank_units_around(math.radians(sun), 6)
+        assert units[:2] == [k, k + 1] and len(set(units)) == 6
+        assert all(0 <= unit <= precise.SUN_KEY_UNITS for unit in units)
+        assert max(units) - min(units) == 5          # contiguous: nearest first, outward
+
+
+def test_the_bank_blends_its_two_keys_around_the_sun_and_integrates_nothing_else(monkeypatch):
+    """A sun between two banked keys gets their blend (what the shader's blend of two key tiles samples); with either
+    key missing, nothing (and nothing is integrated to find out)."""
+    from atmos_addon.physics import precise
+
+    monkeypatch.setattr(precise, "_BANK", precise.collections.OrderedDict())
+    sun = math.radians(21.3)
+    k, weight = precise.sun_key_bracket(sun)
+    assert precise.tile_from_bank(EARTH, 40.0, sun) is None and not precise.banked(EARTH, 40.0)
+    low = precise.bank_tile(EARTH, 40.0, k)
+    assert precise.banked(EARTH, 40.0) and not precise.banked(EARTH, 40.0, k + 1) and not precise.banked(EARTH, 41.0)
+    assert precise.tile_from_bank(EARTH, 40.0, sun) is None
+    high = precise.bank_tile(EARTH, 40.0, k + 1)
+    integrate = precise.integrate_tile
+    assert np.array_equal(high.a_mie, integrate(EARTH, 40.0, math.radians(22.0)).a_mie)
+    monkeypatch.setattr(precise, "integrate_tile", lambda *args, **kwargs: pytest.fail("integrated"))
+    assert precise.bank_tile(EARTH, 40.0, k) is low
+    blended = precise.tile_from_bank(EARTH, 40.0, sun)
+    expected = blend_tiles(low, high, weight, 40.0, EARTH)
+    for name in ("mean_extinction", "a_rayleigh", "a_mie", "sky_radiance", "camera_sky_mie"):
+        assert np.array_equal(getattr(blended, name), getattr(expected, name)), name
+    assert weight == pytest.approx(0.65)
+    assert precise.tile_from_bank(EARTH, 40.0, sun, multiple_scattering=False) is None   # another table's keys
+    monkeypatch.setattr(precise, "integrate_tile", integrate)
+    stop = precise.threading.Event()
+    stop.set()                                   # a key no longer wanted: its integration ends, nothing is kept
+    with pytest.raises(precise.TileCancelled):
+        precise.integrate_tile(EARTH, 40.0, sun, stop=stop)
+    assert precise.bank_tile(EARTH, 40.0, k + 2, stop=stop) is None and not precise.banked(EARTH, 40.0, k + 2)
+
+
 def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
     """Across the terminator the multiply scattered light falls by orders of magnitude within a few degrees of sun:
     the table interpolates it log-linearly between its sun-cosine nodes, so 33 nodes give what 65 give (S_R + S_M

@@ -19,6 +19,7 @@ from __future__ import annotations
 import concurrent.futures
 import hashlib
 import math
+import threading
 import time
 import traceback
 from dataclasses import dataclass
@@ -27,7 +28,8 @@ import bpy
 import numpy as np
 
 from ...nodes import stamps
-from ...physics.precise import DEFAULT_SHAPE, Tile, bake_tile, key_tiles, shared_max_distance, tables_ready
+from ...physics.precise import (DEFAULT_SHAPE, Tile, bake_tile, bank_tile, bank_units_around, banked, key_tiles,
+                                shared_max_distance, tables_ready, tile_from_bank)
 from .. import facts, group_integrity, scene_reading
 from ..debounce import Debounced
 from . import compositor
@@ -332,7 +334,7 @@ def follow(scene) -> None:
     animated scene's key tiles are re-baked by Enable, Refresh and quality changes (:func:`bake`), and in the
     background when an edit makes the sun's recorded animation stale (:func:`.sun_bake.follow`); in the UI not on
     every edit (0.4-0.5 s a key tile), except once for a file whose image has an older tile layout
-    (:func:`layout_stale`)."""
+    (:func:`layout_stale`). In the UI a sun move among the banked key tiles shows at once (:func:`show_banked`)."""
     if not uses_precise(scene):
         return
     if moves(scene):
@@ -342,6 +344,7 @@ def follow(scene) -> None:
     if bpy.app.background:
         bake(scene)
         return
+    show_banked(scene)
     _later.request(scene)
 
 
@@ -372,6 +375,7 @@ def bake_on_worker(scene) -> None:
         preview = _previews.pop(scene.name, None)
         if preview is not None:
             preview[1].cancel()
+    _cancel_bank()                 # the scene's own tile first: the bank's keys not started wait for the next fill
     if request.multiple and not tables_ready(request.atmosphere, request.albedo):
         _previews[scene.name] = (request, _executor().submit(_integrate_preview, request))
     _jobs[scene.name] = (request, _executor().submit(_integrate, request))
@@ -421,6 +425,7 @@ def write_finished():
         try:
             if future.exception() is not None or _request(scene).key == request.key:
                 bake(scene)
+                _fill_bank(request, BANK_SPAN)   # the keys around the sun, for the next move
             else:
                 bake_on_worker(scene)
         except Exception:   # a timer that raises is unregistered: the other scenes' bakes would never be written
@@ -482,6 +487,90 @@ def pending() -> list[str]:
 _later = Debounced(bake_on_worker)
 
 
+# -- The UI's sun move: the bank of key tiles around a still scene's sun ---------------------------------------------
+
+#: Keys of the sun's grid (``physics.precise.bank_units_around``) the worker bakes around a still scene's sun once its
+#: tile is written in the UI (the two around it, then outward: +-2 deg by day, +-1 deg below 3 deg), 0.3-0.4 s each.
+BANK_SPAN = 6
+#: The bank's key (``physics.precise`` arguments) -> the worker's future baking it and the event that stops it.
+_bank_jobs: dict[tuple, tuple[concurrent.futures.Future, threading.Event]] = {}
+
+
+def show_banked(scene) -> bool:
+    """The UI's first look at a still scene's sun move: where the bank holds the two key tiles of the sun's grid around
+    the new elevation (``physics.precise.tile_from_bank``), their blend is written at once (a few ms), its key marked
+    :data:`PREVIEW_MARK`; the debounced bake writes the exact tile over it (:func:`bake_on_worker`; a save waits for
+    it). Where the bank holds keys of this camera altitude and atmosphere but not those two (a drag past them), the
+    worker bakes those two next. Nothing for an atmosphere not built yet (its own preview comes first) or a camera
+    altitude the bank has no key of (a camera drag: the exact tile, then the bank around it). True when written."""
+    if not _bakes_still(scene):
+        return False
+    request = _request(scene)
+    image = stamps.local(bpy.data.images, scene_reading.groups().precise.IMAGE_NAME)
+    if image is not None and image.get(_KEY) in (request.key, request.key + PREVIEW_MARK):
+        return False
+    if request.multiple and not tables_ready(request.atmosphere, request.albedo):
+        return False
+    altitude, elevation = request.path.keys[0]
+    options = {"multiple_scattering": request.multiple, "ground_albedo": request.albedo}
+    tile = tile_from_bank(request.atmosphere, altitude, elevation, **options)
+    if tile is None:
+        if banked(request.atmosphere, altitude, **options):
+            _fill_bank(request, 2)
+        return False
+    _write(scene, request, [tile], request.key + PREVIEW_MARK)
+    return True
+
+
+def fill_bank(scene, count: int = BANK_SPAN) -> None:
+    """Have the worker bake the ``count`` keys of the sun's grid nearest a still scene's sun (what the UI does after
+    each of its bakes; scripts that drive the UI's path, tests and the bench call it after a synchronous one)."""
+    if _bakes_still(scene):
+        _fill_bank(_request(scene), count)
+
+
+def _fill_bank(request: _Request, count: int) -> None:
+    """Submit the keys around ``request``'s sun that the bank lacks (the jobs of an earlier fill for other keys are
+    dropped where not started); a worker error is printed (the exact bake reports its own)."""
+    altitude, elevation = request.path.keys[0]
+    options = {"multiple_scattering": request.multiple, "ground_albedo": request.albedo}
+    wanted = {unit: (request.atmosphere, altitude, unit, request.multiple, request.albedo)
+              for unit in bank_units_around(elevation, count)}
+    _cancel_bank(keep=set(wanted.values()))
+    for unit, key in wanted.items():
+        if key in _bank_jobs or banked(request.atmosphere, altitude, unit, **options):
+            continue
+        stop = threading.Event()
+        future = _executor().submit(bank_tile, request.atmosphere, altitude, unit, stop=stop, **options)
+        future.add_done_callback(_report_bank_error)
+        _bank_jobs[key] = future, stop
+
+
+def _report_bank_error(future: concurrent.futures.Future) -> None:
+    if not future.cancelled() and future.exception() is not None:
+        traceback.print_exception(future.exception())
+
+
+def _cancel_bank(keep: set = frozenset()) -> None:
+    """Drop the bank's jobs (but those of the keys in ``keep``): one not started is cancelled, a running one stopped
+    at its next block of rows (``physics.precise.integrate_tile``'s ``stop``: 20-40 ms, so the scene's own bake
+    waits no longer); forget the finished ones."""
+    for key, (future, stop) in list(_bank_jobs.items()):
+        if key not in keep and not future.cancel():
+            stop.set()
+        if future.done() or key not in keep:
+            del _bank_jobs[key]
+
+
+def wait_for_bank(timeout_s: float = 60.0) -> bool:
+    """Block until the bank's jobs are done, at most ``timeout_s`` (tests, the bench); True when none is left."""
+    concurrent.futures.wait([future for future, _ in _bank_jobs.values()], timeout=timeout_s)
+    for key, (future, _) in list(_bank_jobs.items()):
+        if future.done():
+            del _bank_jobs[key]
+    return not _bank_jobs
+
+
 def finish_pending() -> None:
     """Bake now what the UI has queued (the debounced re-bake) and write what the worker is baking (before a save: a
     farm renders the file's table, so it must be the scene's)."""
@@ -496,6 +585,8 @@ def cancel_pending() -> None:
         future.cancel()
     _jobs.clear()
     _previews.clear()
+    _cancel_bank()
+    _bank_jobs.clear()
     if bpy.app.timers.is_registered(write_finished):
         bpy.app.timers.unregister(write_finished)
     if _worker:
