@@ -304,3 +304,25 @@ def test_a_sun_move_among_the_banked_keys_shows_their_blend_at_once_then_the_exa
     assert not precise_tables.show_banked(scene) and not precise_tables._bank_jobs
     precise_tables.cancel_pending()
     assert not precise_tables._bank_jobs
+
+
+def test_the_interfaces_follow_shows_a_banked_sun_move_then_bakes_the_exact_tile(addon, monkeypatch):
+    """What a sun drag does in the interface (``precise_tables.interactive``), through the handler's ``follow``: the
+    bake of Enable fills the bank, a move among its keys is shown by ``follow`` itself, and the debounced bake (its
+    timer fired here) writes the exact tile, which a save would also wait for."""
+    from atmos_addon.physics import precise
+
+    monkeypatch.setattr(precise, "_BANK", precise.collections.OrderedDict())
+    monkeypatch.setattr(precise_tables, "interactive", lambda: True)
+    scene = _scene(addon)
+    precise_tables.bake(scene, force=True)               # Enable's (or Refresh's) bake, in the interface
+    assert precise_tables._bank_jobs and precise_tables.wait_for_bank()
+    _move_sun(scene, 20.7)
+    request = precise_tables._request(scene)
+    precise_tables.follow(scene)
+    assert _image()[precise_tables._KEY] == request.key + precise_tables.PREVIEW_MARK
+    assert not precise_tables.pending()                   # the exact tile waits for the debounced timer
+    precise_tables._later.flush()
+    precise_tables.wait_for_worker()
+    assert _image()[precise_tables._KEY] == request.key
+    precise_tables.cancel_pending()

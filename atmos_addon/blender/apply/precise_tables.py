@@ -230,14 +230,19 @@ def _current_image(request: _Request, scene) -> bpy.types.Image | None:
 def bake(scene, *, force: bool = False) -> int:
     """Bake the scene's tables if their inputs changed (or ``force``); returns the number of tiles baked (0: the
     image was current). Writes and, when they change over the frame range, keys the Precise parameters, and records
-    the number of key tiles (:data:`.facts.KEY_TILES`, which the plan's blend follows)."""
+    the number of key tiles (:data:`.facts.KEY_TILES`, which the plan's blend follows). In the interface a still
+    scene's bank is then filled around its sun (:func:`show_banked`; its keys are baked on the worker thread)."""
     request = _request(scene)
     image = None if force else _current_image(request, scene)
     if image is not None:
         _link_image(image)
         _revalidate_drivers(scene)
-        return 0
-    return _write(scene, request, _integrate(request), request.key)
+        baked = 0
+    else:
+        baked = _write(scene, request, _integrate(request), request.key)
+    if interactive() and _bakes_still(scene):
+        _fill_bank(request, BANK_SPAN)
+    return baked
 
 
 def _write(scene, request: _Request, tiles: list[Tile], key: str) -> int:
@@ -341,11 +346,17 @@ def follow(scene) -> None:
         if layout_stale():
             bake(scene)   # a file saved by an Atmos that laid its tiles out otherwise: its key tiles, once
         return
-    if bpy.app.background:
+    if not interactive():
         bake(scene)
         return
     show_banked(scene)
     _later.request(scene)
+
+
+def interactive() -> bool:
+    """True in the interface: a change is baked later on the worker thread (a script in the background bakes at once,
+    :func:`follow`)."""
+    return not bpy.app.background
 
 
 def layout_stale() -> bool:
@@ -425,7 +436,8 @@ def write_finished():
         try:
             if future.exception() is not None or _request(scene).key == request.key:
                 bake(scene)
-                _fill_bank(request, BANK_SPAN)   # the keys around the sun, for the next move
+                _fill_bank(request, BANK_SPAN)   # the keys around the sun for the next move (also where a script
+                                                 # drives this path in the background)
             else:
                 bake_on_worker(scene)
         except Exception:   # a timer that raises is unregistered: the other scenes' bakes would never be written
