@@ -1136,8 +1136,13 @@ def bake_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: floa
 def _cached_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, multiple_scattering: bool,
                  ground_albedo: tuple[float, float, float], shape: TableShape, max_distance_m: float | None,
                  preview: bool) -> Tile:
-    tile = integrate_tile(atm, camera_altitude_m, sun_elevation_rad, multiple_scattering=multiple_scattering,
-                          ground_albedo=ground_albedo, shape=shape, max_distance_m=max_distance_m, preview=preview)
+    return _frozen(integrate_tile(atm, camera_altitude_m, sun_elevation_rad, multiple_scattering=multiple_scattering,
+                                  ground_albedo=ground_albedo, shape=shape, max_distance_m=max_distance_m,
+                                  preview=preview))
+
+
+def _frozen(tile: Tile) -> Tile:
+    """``tile`` with its arrays read-only (a kept tile is shared by whoever asks for it)."""
     for array in (tile.mean_extinction, tile.a_rayleigh, tile.a_mie, tile.sky_radiance,
                   tile.sky_ground_transmittance, tile.camera_sky_rayleigh, tile.camera_sky_mie):
         array.setflags(write=False)
@@ -1831,7 +1836,7 @@ def bank_tile(atm: Atmosphere, camera_altitude_m: float, unit: int, *, multiple_
     except TileCancelled:
         return None
     with _BANK_LOCK:
-        _BANK[key] = tile
+        _BANK[key] = _frozen(tile)
         while len(_BANK) > BANK_TILES:
             _BANK.popitem(last=False)
     return tile
