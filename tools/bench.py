@@ -374,7 +374,10 @@ BSDF), a camera and a sun lamp. The sync rows time {repeats} writes of `scene.at
 
 NOTES = """## What the numbers say
 
-- **Render**: the default costs 1.11x Blender's sky in Cycles in this run, 1.07x in the run before it (both with the
+- **Render**: the default costs 1.12x Blender's sky in Cycles in this run (stop 53, nothing that renders changed;
+  a machine that built the tables 1.2-1.3x slower than the run before's, with the same code), 1.11x in the two runs
+  before (stop 52 on an AMD EPYC machine whose renders took 1.5x as long as the run before's) and 1.07x in the one
+  before that (both with the
   parts below, which change nothing that renders: Cycles and Eevee inline node groups) and 1.10x at stop 48: the
   1.10x target is met within this machine's noise, not with a margin.
 - **Parameter changes** cost the same with 10 or 5000 materials: a sync writes seven scene custom properties (plus the
@@ -383,7 +386,10 @@ NOTES = """## What the numbers say
   geometry) and rewrites their keys: 4.6-5.5 ms a sync against 3.4-4.4 ms before the drivers (5.2.3, interleaved A/B
   of `tools/bench_scale.py`, two runs each, stop 45); this run 4.66-5.07 ms, two rows just above 5 ms on a machine
   that built the scene in 8.9-11.4 s (5.4-7.9 s in the run before it, 4.58-4.81 ms; 4.16-4.69 ms and 4.26-4.81 ms
-  before that): the target is met within this machine's noise, not with a margin.
+  before that): the target is met within this machine's noise, not with a margin. This run (stop 52): 6.0-7.8 ms, on a
+  machine where the sync alone, timed interleaved in this code and in the code before the stop (f8db7aa, a worktree;
+  nothing the sync runs changed), gave 7.5-11.3 ms and 9.7-10.9 ms: the machine, not the code. Stop 53: 7.0-7.7 ms
+  (nothing the sync runs changed again; the scene built in 7.8-8.2 s against 6.3-7.3 s).
 - **Enable** is dominated by adding one group node per material. Per material two RNA edits remain,
   `nodes.new` and the `node.node_tree` write; every other access is a read (node locations and widths with
   one `foreach_get` each, the new location with one `foreach_set`, which skips the node-tree update). The material
@@ -401,8 +407,10 @@ NOTES = """## What the numbers say
 - **Per edit**: `tools/bench_node_edits.py` times the two edits against the file's size: `nodes.new` 26-27 us and
   the `node_tree` write 22 us in 4.5.15, 22 us and 19 us in 5.2.3 and 5.3.0, the same with 1000 and with 5000
   materials, so an enable grows linearly with the materials.
-- **The 1 s target**: 1.38-1.56 s in this run on the three versions, not met; this run's machine was slow (building the
-  scene, not Atmos, took 8.9-11.4 s; the run before it, with the same enable code and the older disable, 1.15-1.34 s,
+- **The 1 s target**: 1.37-1.42 s in this run (stop 53, the enable's code as at stop 52, the scene built in 7.8-8.2 s)
+  on the three versions, not met (1.24-1.62 s at stop 52; 1.38-1.56 s in the run before, whose machine was slow:
+  building the scene, not Atmos, took 8.9-11.4 s, here 6.3-7.3 s; the run before that, with the same enable code and
+  the older disable, 1.15-1.34 s,
   5.4-7.9 s to build the scene). An interleaved A/B on 5.2.3 (`tools/bench_scale.py`, the code before, c275afd, in a
   worktree and this code, two runs each, stop 50): enable 1.66-1.71 s -> 1.21-1.42 s, its CPU time 2.13-2.19 s ->
   1.37-1.58 s, the mode switch 1.99 s -> 1.76 s, disable 0.86-0.88 s -> 0.62-0.65 s. The runs before stop 45 had an
@@ -441,7 +449,8 @@ NOTES = """## What the numbers say
   (2.7 s then: every edited material) is Blender's, paid by the next redraw or render whatever Atmos does (2.41 s on
   5.2.3, `tools/measure_scene_tags.py`, below); the scale script evaluates it untimed before the sun-move rows, so
   since this run Refresh's row (0.5-0.7 s, 2.0-2.9 s before) no longer holds it. A preset load changes the atmosphere
-  and so re-bakes the tables instead of the 20 ms target: 1.60-1.78 s (1.50-1.79 s and 1.55-1.85 s in the runs before,
+  and so re-bakes the tables instead of the 20 ms target: 1.92-2.89 s in this run (stop 53), 1.94-2.53 s at stop 52
+  (its machine's sync rows were 1.5x the run before's), 1.60-1.78 s (1.50-1.79 s and 1.55-1.85 s in the runs before,
   2.46-2.72 s before stop 46: the tables below). The sun table's grids are kept when only coefficients change; the
   tables 0.89-0.96 s on 2 cores (`tools/bench_tables.py`, above; 0.97-1.02 s at stop 48; 0.88-0.96 s before stop 47's
   second order by direction, which took the Martian sunset from 18.7 % to 6.0 %), 1.85-1.97 s before the
@@ -449,8 +458,10 @@ NOTES = """## What the numbers say
   altitudes built on threads; the tile 0.37-0.59 s (0.40-0.46 s at stop 48, 0.47-0.51 s before the lookups below,
   0.75 s before the threads).
   In the interface the panel's preset menu goes through the same worker thread as any edit (below).
-- **An atmosphere edit** re-bakes the per-atmosphere tables and the tile: 1.52 s in the background (the still
-  valley above; 1.68 s and 1.42 s in the runs before, on this stop's slower machine and at stop 48; 1.39 s and 1.35 s
+- **An atmosphere edit** re-bakes the per-atmosphere tables and the tile: 1.73 s in the background (the still
+  valley above, stop 53, on a machine that built the tables in 1.61-1.72 s, 1.25-1.46 s at stop 52 with the same
+  code); 1.50 s at stop 52, 1.52 s, 1.68 s and 1.42 s in the runs before, on this stop's slower machine and at stop
+  48; 1.39 s and 1.35 s
   before stop 47's second order by direction, 2.66 s before that),
   so the 1 s target is not met there on this 2-core machine. In the interface the
   bake runs on a worker thread (`blender/apply/precise_tables.py`, `bake_on_worker`, stop 46): the main thread's
@@ -481,7 +492,15 @@ NOTES = """## What the numbers say
   transport matrix's rows, 27 weighted bincounts per altitude over 200 000 corner weights (0.57 s under cProfile;
   `np.add.at` and a sorted `reduceat` took 2.6-2.8x as long, and batched matrix products over each altitude cell's
   points, the corners as dense rows of sun cosines, 1.6x: 16 times the products multiply a zero), the lookups
-  0.4 s, the march 0.15 s. In a worker thread the bincounts run at about twice their main-thread speed (numpy's
+  0.4 s, the march 0.15 s. Stop 52 (`tools/bench_tables.py` in this code and in the code before, f8db7aa, in a
+  worktree, interleaved, two runs each): the tile's rows integrated in blocks of 4 instead of one block per thread
+  (each block's arrays, about 8 MB a quantity, stay in the processor's cache) 0.54-0.71 s -> 0.33-0.40 s a tile on 2
+  cores, 0.87-1.23 s -> 0.50-0.57 s on one; the transport rows' corner weights by broadcasting instead of `np.tile`
+  (its copies were 0.2 s of a one-thread build under cProfile) the tables 1.37-1.64 s -> 1.18-1.39 s on 2 cores; the
+  same numbers to the bit. One bincount over all 27 columns at once instead of 27 was no faster (1.43 s). So a still
+  scene's sun move bakes in 0.31 s (0.49 s in the run before), the UI's worker 0.31 s (0.35 s); at stop 53, on its
+  slower machine, 0.39 s and 0.42 s (the worker's with the bank's stop, below). In a worker thread the bincounts run
+  at about twice their main-thread speed (numpy's
   large temporaries there come from the thread's own heap; glibc's main arena gives the pages back and faults them
   in again), which the table's threads already get. Tried and dropped: fewer samples
   along the tile's rays (49 instead of 65 moved a texel by up to 30 % near the planet's shadow), the
@@ -545,7 +564,7 @@ NOTES = """## What the numbers say
   0.3 s after the last move plus the tile (0.3-0.4 s). Now, once a still scene's tile is written, the worker bakes
   the key tiles of the sun's grid around it (`physics.precise.bank_tile`: the animation's keys, 2 deg apart by day,
   1 deg from 10 to 3 deg, 0.5 deg below; six of them, 0.3-0.4 s each, a bank of the last 24 kept), and a move between
-  two banked keys writes their blend at once (`precise_tables.show_banked`: no integration; the row above, 6-7 ms on
+  two banked keys writes their blend at once (`precise_tables.show_banked`: no integration; the row above, 6-9 ms on
   the main thread in all, the change and Atmos's handler included), its key marked as a preview; the exact tile
   follows as before and replaces it (a save waits for it, so a farm never renders the blend). A drag past the bank
   queues the two keys around the sun next (0.3-0.4 s each), so the sky trails the drag by a key's bake instead of
