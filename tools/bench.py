@@ -561,23 +561,24 @@ NOTES = """## What the numbers say
   the re-bake: the tile is camera-centred and baked for one sun elevation, so an elevation change needs a new one;
   tables that do not depend on the sun (Bruneton's or Hillaire's parametrisations) would remove it.
 - **The UI's sun drag** (stop 53): until then the sky and haze stayed where they were for the whole drag and followed
-  0.3 s after the last move plus the tile (0.3-0.4 s). Now, once a still scene's tile is written, the worker bakes
-  the key tiles of the sun's grid around it (`physics.precise.bank_tile`: the animation's keys, 2 deg apart by day,
-  1 deg from 10 to 3 deg, 0.5 deg below; six of them, 0.3-0.4 s each, a bank of the last 24 kept), and a move between
-  two banked keys writes their blend at once (`precise_tables.show_banked`: no integration; the row above, 6-9 ms on
-  the main thread in all, the change and Atmos's handler included), its key marked as a preview; the exact tile
+  0.3 s after the last move plus the tile (0.3-0.4 s). Now, once a still scene's tile is written, the worker bakes the
+  key tiles of the sun's grid around it (`physics.precise.bank_tile`: the animation's keys, 2 deg apart by day, 1 deg
+  from 10 to 3 deg, 0.5 deg below; six of them, 0.3-0.4 s each, a bank of the last 24 kept), and a move between two
+  banked keys writes their blend at once (`precise_tables.show_banked`: no integration; the row above, 6-9 ms on the
+  main thread in all, the change and Atmos's handler included; in the scale table's scene of 5000 materials the write
+  7-9 ms and the depsgraph update after it 0 ms, as it tags nothing), its key marked as a preview; the exact tile
   follows as before and replaces it (a save waits for it, so a farm never renders the blend). A drag past the bank
   queues the two keys around the sun next (0.3-0.4 s each), so the sky trails the drag by a key's bake instead of
-  waiting for its end. The blend is the animation's mid-step error at most (docs/quality.md: by day under 0.5 % at
-  the 99th percentile, below the horizon 3-7 %), on screen until the exact tile lands. What it costs: a change
-  handed to the worker while a bank key is being baked stops that key at its next block of rows (the tile's `stop`
-  event) and waits for it: in `tools/bench_animation.py --frames 30 --repeats 5` (this code and the code before,
-  d30cf53, in a worktree, interleaved, two runs each; every move there comes right after the last bake, while the
-  bank fills) the UI's sun move's worker 325-352 ms -> 383-433 ms and the atmosphere edit's first look 670-691 ms ->
-  758-778 ms; a change a few seconds after the last one (the bank full) waits for nothing. Not done: the camera's
-  altitude (a bank in altitude would blend tiles of another largest distance D than the scene's, whose parameter
-  write re-evaluates every object), and the background's moves, which bake the exact tile at once as before (a
-  script renders right after).
+  waiting for its end. The blend is the animation's mid-step error at most (docs/quality.md: by day under 0.5 % at the
+  99th percentile, below the horizon 3-7 %), on screen until the exact tile lands. What it costs: a change handed to
+  the worker while a bank key is being baked stops that key at its next block of rows (the tile's `stop` event) and
+  waits for it: in `tools/bench_animation.py --frames 30 --repeats 5` (this code and the code before, d30cf53, in a
+  worktree, interleaved, two runs each; every move there comes right after the last bake, while the bank fills) the
+  UI's sun move's worker 325-352 ms -> 383-433 ms and the atmosphere edit's first look 670-691 ms -> 758-778 ms; a
+  change a few seconds after the last one (the bank full) waits for nothing. Not done: the camera's altitude (a bank
+  in altitude would blend tiles of another largest distance D than the scene's, whose parameter write re-evaluates
+  every object), and the background's moves, which bake the exact tile at once as before (a script renders right
+  after).
 - The numbers move by up to 2x with other work on the machine (see the load average above), and between days
   on the same quiet machine: stop 20 measured the 10-material sync at 0.84 ms and 5.0's enable at 964-968 ms;
   stop 21's two runs, load average below 1, 2.3-3.2 ms and 1.14-1.25 s with the same sync code and a leaner
