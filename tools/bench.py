@@ -497,17 +497,19 @@ NOTES = """## What the numbers say
   (each block's arrays, about 8 MB a quantity, stay in the processor's cache) 0.54-0.71 s -> 0.33-0.40 s a tile on 2
   cores, 0.87-1.23 s -> 0.50-0.57 s on one; the transport rows' corner weights by broadcasting instead of `np.tile`
   (its copies were 0.2 s of a one-thread build under cProfile) the tables 1.37-1.64 s -> 1.18-1.39 s on 2 cores; the
-  same numbers to the bit. One bincount over all 27 columns at once instead of 27 was no faster (1.43 s). So a still
-  scene's sun move bakes in 0.31 s (0.49 s in the run before), the UI's worker 0.31 s (0.35 s); at stop 53, on its
-  slower machine, 0.39 s and 0.42 s (the worker's with the bank's stop, below). In a worker thread the bincounts run
-  at about twice their main-thread speed (numpy's
+  same numbers to the bit. One bincount over all 27 columns at once instead of 27 was no faster (1.43 s); stop 53: a
+  sort and one `np.add.reduceat` over all 27, 3.8x slower. Stop 53 also computes the sun table's parts that depend
+  on the radius alone at the radii's own shape instead of broadcast over every sun node or azimuth first (its call
+  72 -> 58 ms on a tile's points, the same bits; the tables and the tile within this machine's noise of before in an
+  interleaved `tools/bench_tables.py`, two runs each). So a still scene's sun move bakes in 0.31 s (0.49 s in the
+  run before), the UI's worker 0.31 s (0.35 s); at stop 53, on its slower machine, 0.39 s and 0.42 s (the worker's
+  with the bank's stop, below). In a worker thread the bincounts run at about twice their main-thread speed (numpy's
   large temporaries there come from the thread's own heap; glibc's main arena gives the pages back and faults them
-  in again), which the table's threads already get. Tried and dropped: fewer samples
-  along the tile's rays (49 instead of 65 moved a texel by up to 30 % near the planet's shadow), the
-  multiple-scattering lookup at every second or fourth sample, interpolated between (0.38 / 0.28 s a tile, texels
-  up to 0.7 % / 1.5 % off under the overcast). The resolution study that chose the table
-  (`.venv/bpy-5.2.3/bin/python tools/measure_ms_resolution.py`, stop 45: the largest change of the default's pixel
-  luminance per case, %, against the table then):
+  in again), which the table's threads already get. Tried and dropped: fewer samples along the tile's rays (49
+  instead of 65 moved a texel by up to 30 % near the planet's shadow), the multiple-scattering lookup at every
+  second or fourth sample, interpolated between (0.38 / 0.28 s a tile, texels up to 0.7 % / 1.5 % off under the
+  overcast). The resolution study that chose the table (`.venv/bpy-5.2.3/bin/python tools/measure_ms_resolution.py`,
+  stop 45: the largest change of the default's pixel luminance per case, %, against the table then):
 
   | table | build | day cases | sunsets | Mars noon / sunset | blue hour | overcast, 1 deg sun |
   |---|---:|---:|---:|---:|---:|---:|

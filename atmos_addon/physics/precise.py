@@ -216,6 +216,8 @@ class SunTransmittanceTable:
         self.log_ch, self.ozone_column = _sun_geometry(atm, n_altitudes, n_cosines)
 
     def __call__(self, radius_m: ArrayLike, cos_zenith: ArrayLike) -> np.ndarray:
+        """exp(-tau) to space, (..., 3), at radii and sun zenith cosines that broadcast: what depends on the radius
+        alone is computed at the radii's own shape (a ray's samples under several suns or azimuths share it)."""
         atm = self.atm
         radius = np.clip(np.asarray(radius_m, dtype=np.float64), atm.planet_radius,
                          atm.planet_radius + atm.atmosphere_height)
@@ -227,7 +229,7 @@ class SunTransmittanceTable:
         i = np.sqrt(altitude / atm.atmosphere_height) * (self.n_alt - 1)
         k = np.sqrt(w) * (self.n_mu - 1)
         slant = np.exp(_bilinear(self.log_ch, i, k))                                # (..., 2): both layers
-        tau = np.zeros(radius.shape + (3,))
+        tau = np.zeros(np.broadcast_shapes(radius.shape, mu.shape) + (3,))
         for layer, beta, height in ((0, atm.rayleigh_scattering, atm.rayleigh_scale_height),
                                     (1, atm.mie_extinction, atm.mie_scale_height)):
             tau += beta * (height * np.exp(-altitude / height) * slant[..., layer])[..., None]
@@ -761,10 +763,10 @@ class MultipleScatteringTable:
 
         def march(j: int) -> None:             # the rows of altitude j's nodes: each call writes its own slices
             rays = all_rays[j]
-            t_sun = sun_table(np.broadcast_to(rays.radius_m, rays.sun_cosine.shape), rays.sun_cosine)  # (M, D, S, 3)
+            t_sun = sun_table(rays.radius_m, rays.sun_cosine)                      # (M, D, S, 3)
             light = np.sum(t_sun * (rays.first_rayleigh[None] * phase_r + rays.first_mie[None] * phase_m), axis=2)
             lit_ground = np.maximum(rays.ground_sun_cosine, 0.0)[..., None] * sun_table(
-                np.broadcast_to(rays.ground_radius_m, rays.ground_sun_cosine.shape) + 1e-3, rays.ground_sun_cosine)
+                rays.ground_radius_m + 1e-3, rays.ground_sun_cosine)
             once[j] = light + (rays.first_to_ground / np.pi)[None] * lit_ground
             emitted = self._emission(rays)                                          # (3, M, D, S, 3)
             # (out a, in b): sum over w of project_a(w) dOmega / 4 pi times what the steps along w send of b
@@ -1212,7 +1214,7 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
         view_t = np.where(tau_to > 0.0, np.exp(-tau_to * (tau[..., None, :] / np.maximum(tau_to[..., -1:, :], 1e-300))),
                           view_t)                                                     # rescaled to the Simpson total
         mu_s = (r_c * sin_s + t * nu) / np.maximum(radius, 1.0)                       # (H, A, D, S)
-        sun_t = sun_table(np.broadcast_to(radius, mu_s.shape), mu_s)                  # 0 in the planet's shadow
+        sun_t = sun_table(radius, mu_s)                                               # 0 in the planet's shadow
         weights = (_simpson_weights(RAY_SAMPLES)[:, None] * dt_dw)                    # (1, 1, D, S, 1)
         j_r = np.sum(weights * view_t * atm.rayleigh_scattering * n_r * sun_t, axis=-2)
         j_m = np.sum(weights * view_t * atm.mie_scattering * n_m * sun_t, axis=-2)

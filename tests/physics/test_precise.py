@@ -48,6 +48,9 @@ def test_sun_transmittance_table_matches_the_chapman_quadrature(atm):
     error = np.abs(table(radius, mu) - np.exp(-tau))
     assert error.max() < 5e-4                                           # absolute transmittance
     assert np.all(table(radius, horizon - 1e-3) == 0.0)                # the planet's shadow
+    # radii of their own shape under several suns (a ray's samples under every sun node): the broadcast call's bits
+    suns = mu[None, :] * np.array([1.0, 0.5, -0.1])[:, None]
+    assert np.array_equal(table(radius, suns), table(np.broadcast_to(radius, suns.shape), suns))
 
 
 def test_multiple_scattering_table_is_finite_positive_and_zero_deep_in_the_shadow():
