@@ -1813,8 +1813,10 @@ def bank_units_around(sun_elevation_rad: float, count: int) -> list[int]:
     return units
 
 
-def _bank_key(atm: Atmosphere, camera_altitude_m: float, unit: int, multiple_scattering: bool,
-              ground_albedo, shape: TableShape) -> tuple:
+def bank_key(atm: Atmosphere, camera_altitude_m: float, unit: int, *, multiple_scattering: bool = True,
+             ground_albedo=DEFAULT_GROUND_ALBEDO, shape: TableShape = DEFAULT_SHAPE) -> tuple:
+    """What names key ``unit`` in the bank (the worker's jobs are named by it too): (atmosphere, camera altitude,
+    unit, multiple scattering, ground albedo, shape)."""
     return (atm, float(camera_altitude_m), int(unit), bool(multiple_scattering),
             tuple(float(a) for a in ground_albedo), shape)
 
@@ -1826,7 +1828,8 @@ def bank_tile(atm: Atmosphere, camera_altitude_m: float, unit: int, *, multiple_
     scene's tile): the bank's, or integrated (:func:`integrate_tile`) and kept (the last :data:`BANK_TILES`); None
     when ``stop`` was set meanwhile (nothing kept). Thread-safe: the worker thread fills the bank while the main
     thread reads it."""
-    key = _bank_key(atm, camera_altitude_m, unit, multiple_scattering, ground_albedo, shape)
+    key = bank_key(atm, camera_altitude_m, unit, multiple_scattering=multiple_scattering,
+                   ground_albedo=ground_albedo, shape=shape)
     with _BANK_LOCK:
         if key in _BANK:
             _BANK.move_to_end(key)
@@ -1847,12 +1850,13 @@ def bank_tile(atm: Atmosphere, camera_altitude_m: float, unit: int, *, multiple_
 def banked(atm: Atmosphere, camera_altitude_m: float, unit: int | None = None, *, multiple_scattering: bool = True,
            ground_albedo=DEFAULT_GROUND_ALBEDO, shape: TableShape = DEFAULT_SHAPE) -> bool:
     """True when the bank holds key ``unit`` for this camera altitude and atmosphere (``unit`` None: any key)."""
+    options = {"multiple_scattering": multiple_scattering, "ground_albedo": ground_albedo, "shape": shape}
     if unit is not None:
         with _BANK_LOCK:
-            return _bank_key(atm, camera_altitude_m, unit, multiple_scattering, ground_albedo, shape) in _BANK
-    base = _bank_key(atm, camera_altitude_m, 0, multiple_scattering, ground_albedo, shape)
+            return bank_key(atm, camera_altitude_m, unit, **options) in _BANK
+    base = bank_key(atm, camera_altitude_m, 0, **options)
     with _BANK_LOCK:
-        return any(key[:2] + key[3:] == base[:2] + base[3:] for key in _BANK)
+        return any(key[:2] + key[3:] == base[:2] + base[3:] for key in _BANK)   # any unit
 
 
 def tile_from_bank(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, *,
@@ -1861,7 +1865,8 @@ def tile_from_bank(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     """The blend (:func:`blend_tiles`) of the bank's two keys around the sun, or None when either is not banked
     (nothing is integrated here)."""
     k, weight = sun_key_bracket(sun_elevation_rad)
-    keys = [_bank_key(atm, camera_altitude_m, unit, multiple_scattering, ground_albedo, shape) for unit in (k, k + 1)]
+    keys = [bank_key(atm, camera_altitude_m, unit, multiple_scattering=multiple_scattering,
+                     ground_albedo=ground_albedo, shape=shape) for unit in (k, k + 1)]
     with _BANK_LOCK:
         if not all(key in _BANK for key in keys):
             return None

@@ -28,8 +28,8 @@ import bpy
 import numpy as np
 
 from ...nodes import stamps
-from ...physics.precise import (DEFAULT_SHAPE, Tile, bake_tile, bank_tile, bank_units_around, banked, key_tiles,
-                                shared_max_distance, tables_ready, tile_from_bank)
+from ...physics.precise import (DEFAULT_SHAPE, Tile, bake_tile, bank_key, bank_tile, bank_units_around, banked,
+                                key_tiles, shared_max_distance, tables_ready, tile_from_bank)
 from .. import facts, group_integrity, scene_reading
 from ..debounce import Debounced
 from . import compositor
@@ -187,6 +187,11 @@ class _Request:
     multiple: bool
     shared_distance_m: float | None
 
+    @property
+    def options(self) -> dict:
+        """The table's options as ``physics.precise``'s tile functions take them."""
+        return {"multiple_scattering": self.multiple, "ground_albedo": self.albedo}
+
 
 def _request(scene) -> _Request:
     settings = scene.atmos
@@ -214,8 +219,8 @@ def _integrate_preview(request: _Request) -> list[Tile]:
 
 
 def _tiles(request: _Request, *, preview: bool) -> list[Tile]:
-    return [bake_tile(request.atmosphere, altitude, elevation, multiple_scattering=request.multiple,
-                      ground_albedo=request.albedo, max_distance_m=request.shared_distance_m, preview=preview)
+    return [bake_tile(request.atmosphere, altitude, elevation, max_distance_m=request.shared_distance_m,
+                      preview=preview, **request.options)
             for altitude, elevation in request.path.keys]
 
 
@@ -504,7 +509,7 @@ _later = Debounced(bake_on_worker)
 #: Keys of the sun's grid (``physics.precise.bank_units_around``) the worker bakes around a still scene's sun once its
 #: tile is written in the UI (the two around it, then outward: +-2 deg by day, +-1 deg below 3 deg), 0.3-0.4 s each.
 BANK_SPAN = 6
-#: The bank's key (``physics.precise`` arguments) -> the worker's future baking it and the event that stops it.
+#: The bank's key (``physics.precise.bank_key``) -> the worker's future baking it and the event that stops it.
 _bank_jobs: dict[tuple, tuple[concurrent.futures.Future, threading.Event]] = {}
 
 
@@ -524,10 +529,9 @@ def show_banked(scene) -> bool:
     if request.multiple and not tables_ready(request.atmosphere, request.albedo):
         return False
     altitude, elevation = request.path.keys[0]
-    options = {"multiple_scattering": request.multiple, "ground_albedo": request.albedo}
-    tile = tile_from_bank(request.atmosphere, altitude, elevation, **options)
+    tile = tile_from_bank(request.atmosphere, altitude, elevation, **request.options)
     if tile is None:
-        if banked(request.atmosphere, altitude, **options):
+        if banked(request.atmosphere, altitude, **request.options):
             _fill_bank(request, 2)
         return False
     _write(scene, request, [tile], request.key + PREVIEW_MARK)
@@ -545,15 +549,14 @@ def _fill_bank(request: _Request, count: int) -> None:
     """Submit the keys around ``request``'s sun that the bank lacks (the jobs of an earlier fill for other keys are
     dropped where not started); a worker error is printed (the exact bake reports its own)."""
     altitude, elevation = request.path.keys[0]
-    options = {"multiple_scattering": request.multiple, "ground_albedo": request.albedo}
-    wanted = {unit: (request.atmosphere, altitude, unit, request.multiple, request.albedo)
+    wanted = {unit: bank_key(request.atmosphere, altitude, unit, **request.options)
               for unit in bank_units_around(elevation, count)}
     _cancel_bank(keep=set(wanted.values()))
     for unit, key in wanted.items():
-        if key in _bank_jobs or banked(request.atmosphere, altitude, unit, **options):
+        if key in _bank_jobs or banked(request.atmosphere, altitude, unit, **request.options):
             continue
         stop = threading.Event()
-        future = _executor().submit(bank_tile, request.atmosphere, altitude, unit, stop=stop, **options)
+        future = _executor().submit(bank_tile, request.atmosphere, altitude, unit, stop=stop, **request.options)
         future.add_done_callback(_report_bank_error)
         _bank_jobs[key] = future, stop
 
