@@ -8,12 +8,13 @@ The valley sample (``atmos_addon.sample_scenes.valley``, 320x180) with its sun k
 (a sunset) and its camera keyed from 2 m to 300 m up while it moves 2 km north, over ``--frames`` frames. The file is
 saved uncompressed before Atmos and after ``api.enable(scene, preset="clear")``
 (the default: Precise, multiple scattering); the growth is the difference. Then, on the still valley, the Python
-time of a sun move (the lamp rotated, the depsgraph updated: in the background the one tile is re-baked at once)
+time of a sun move (the lamp rotated, the depsgraph updated: in the background the one tile is re-baked at once),
+of a camera moved sideways (no table depends on it: the tiles integrated are counted) and raised (its tile re-baked)
 and of an atmosphere edit (Mie scattering written: the multiple-scattering table and the tile); and of the same
-changes on the UI's path, where the bake runs on a worker thread (:func:`_ui_path`: the main thread's part and the
-worker's), and of a sun move there between two key tiles of the bank the worker fills around the sun
-(:func:`_ui_banked_move`: their blend written at once). Wall time of this process (``time.perf_counter``); not a
-test.
+changes (and of a camera raise) on the UI's path, where the bake runs on a worker thread (:func:`_ui_path`: the main
+thread's part and the worker's), and of a sun move there between two key tiles of the bank the worker fills around
+the sun (:func:`_ui_banked_move`: their blend written at once). Wall time of this process (``time.perf_counter``);
+not a test.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
 from atmos_addon.blender import facts  # noqa: E402
 from atmos_addon.blender.apply import precise_tables  # noqa: E402
+from atmos_addon.physics import precise  # noqa: E402
 from atmos_addon.sample_scenes import valley  # noqa: E402
 from tools.bench import publish_generated_block  # noqa: E402
 
@@ -91,15 +93,24 @@ def still(repeats: int) -> dict:
         sun.rotation_euler = _sun_rotation(25.0 + 0.5 * (index + 1))
         bpy.context.view_layer.update()
         moves.append(time.perf_counter() - start)
+    camera = scene.camera
+    slides, raises, slide_bakes = [], [], 0
+    for index in range(repeats):
+        slide_bakes -= len(_INTEGRATIONS)
+        slides.append(_moved(lambda: camera.location.__setitem__(0, camera.location.x + 1.0)))
+        slide_bakes += len(_INTEGRATIONS)
+        raises.append(_moved(lambda: camera.location.__setitem__(2, camera.location.z + 0.5)))
     edits = []
     base = tuple(scene.atmos.mie_scattering_per_km)
     for index in range(repeats):
         start = time.perf_counter()
         scene.atmos.mie_scattering_per_km = tuple(v * (1.0 + 0.05 * (index + 1)) for v in base)
         edits.append(time.perf_counter() - start)
-    ui_moves, ui_edits = [], []
+    ui_moves, ui_edits, ui_raises = [], [], []
     for index in range(repeats):
         ui_moves.append(_ui_path(scene, lambda: _turn_sun(sun, _sun_rotation(24.0 - 0.5 * (index + 1)))))
+        ui_raises.append(_ui_path(scene, lambda: _moved(lambda: camera.location.__setitem__(2, camera.location.z
+                                                                                            + 0.3))))
         ui_edits.append(_ui_path(scene, lambda: setattr(scene.atmos, "mie_scattering_per_km",
                                                         tuple(v * (1.0 - 0.03 * (index + 1)) for v in base))))
     precise_tables.fill_bank(scene)                 # what the UI's worker does after each bake: keys around the sun
@@ -108,11 +119,38 @@ def still(repeats: int) -> dict:
     banked = [_ui_banked_move(scene, lambda: _turn_sun(sun, _sun_rotation(around + 0.3 * (index % 3 + 1))))
               for index in range(repeats)]
     return {"enable_still_s": enable_still_s, "sun_move_ms": 1000.0 * sorted(moves)[len(moves) // 2],
+            "camera_slide_ms": 1000.0 * statistics.median(slides), "camera_slide_bakes": slide_bakes,
+            "camera_raise_ms": 1000.0 * statistics.median(raises),
             "ui_sun_move_banked_ms": 1000.0 * statistics.median(banked),
             "atmosphere_edit_ms": 1000.0 * sorted(edits)[len(edits) // 2],
             **{f"ui_{kind}_{part}_ms": 1000.0 * statistics.median(run[part] for run in runs)
-               for kind, runs in (("sun_move", ui_moves), ("atmosphere_edit", ui_edits))
+               for kind, runs in (("sun_move", ui_moves), ("atmosphere_edit", ui_edits), ("camera_raise", ui_raises))
                for part in ("main", "worker", "first")}}
+
+
+#: One entry per tile integrated since the bench started (:func:`_count_integrations`): a camera moved sideways must
+#: add none.
+_INTEGRATIONS: list = []
+
+
+def _count_integrations() -> None:
+    """Count :func:`atmos_addon.physics.precise.integrate_tile`'s calls in :data:`_INTEGRATIONS` (the bake's own name
+    for it too)."""
+    integrate = precise.integrate_tile
+
+    def counted(*args, **kwargs):
+        _INTEGRATIONS.append(1)
+        return integrate(*args, **kwargs)
+
+    precise.integrate_tile = counted
+
+
+def _moved(change) -> float:
+    """Seconds of ``change`` (an object moved) and the depsgraph update after it, Atmos's handler included."""
+    start = time.perf_counter()
+    change()
+    bpy.context.view_layer.update()
+    return time.perf_counter() - start
 
 
 def _turn_sun(sun, rotation) -> None:
@@ -180,6 +218,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, help="also write the results as JSON to this file (./run bench)")
     args = parser.parse_args(argv)
     atmos_addon.register()
+    _count_integrations()
     with tempfile.TemporaryDirectory() as folder:
         results = {"blender": bpy.app.version_string, **animated(args.frames, Path(folder)), **still(args.repeats)}
     print(json.dumps(results), flush=True)
@@ -202,6 +241,10 @@ def main(argv: list[str] | None = None) -> int:
              f"{results['ui_atmosphere_edit_worker_ms']:.0f} ms) |",
              f"| the same in the UI: the first look written (an atmosphere edit: from the preview tables), from the "
              f"change | {results['ui_sun_move_first_ms']:.0f} ms / {results['ui_atmosphere_edit_first_ms']:.0f} ms |",
+             f"| camera moved 1 m sideways / raised 0.5 m, still scene, median | {results['camera_slide_ms']:.1f} ms "
+             f"({results['camera_slide_bakes']} tiles integrated) / {results['camera_raise_ms']:.0f} ms |",
+             f"| the UI's camera raise: main thread (the tile on a worker thread) | "
+             f"{results['ui_camera_raise_main_ms']:.0f} ms ({results['ui_camera_raise_worker_ms']:.0f} ms) |",
              f"| the UI's sun move between two banked key tiles: their blend written at once, main thread | "
              f"{results['ui_sun_move_banked_ms']:.0f} ms |",
              "", END_MARK]

@@ -30,6 +30,8 @@ _applying: set[str] = set()
 _batched: set[str] = set()
 #: Per scene: (material count, object count) at the last pass (the depsgraph handler's cheap check for new ones).
 _last_counts: dict[str, tuple[int, int]] = {}
+#: Group name -> (its stamps and node count, its inline node count): :func:`_inline_count`'s cache.
+_inline_counts: dict[str, tuple[tuple, int]] = {}
 
 
 @dataclass
@@ -142,9 +144,18 @@ def material_group(scene):
     built = aerial.describe_features(features)
     if plan.mode == "PER_PIXEL":
         per_pixel = compositor.ensure_per_pixel_group(features)
-        built = f"{built.split(':')[0]}, per pixel: {groups.parts.inline_count(per_pixel)} compositor nodes"
+        built = f"{built.split(':')[0]}, per pixel: {_inline_count(per_pixel)} compositor nodes"
     scene_reading.set_if_changed(scene.atmos, "status_built", built)
     return group
+
+
+def _inline_count(tree) -> int:
+    """:func:`.parts.inline_count` of ``tree`` for the status line, counted again only when the tree was rebuilt (its
+    stamps or its node count changed): every sync writes the status, and the count walks the tree and its parts."""
+    key = (tree.as_pointer(), tree.get(stamps.VERSION_KEY), tree.get(stamps.FEATURES_KEY), len(tree.nodes))
+    if _inline_counts.get(tree.name, (None,))[0] != key:
+        _inline_counts[tree.name] = (key, scene_reading.groups().parts.inline_count(tree))
+    return _inline_counts[tree.name][1]
 
 
 def sky_group(scene):

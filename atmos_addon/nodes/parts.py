@@ -20,7 +20,7 @@ not Attribute nodes, the parameters a part reads (:attr:`Part.parameters`) becom
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,6 +34,9 @@ _SOCKET_TYPES = {FLOAT: "NodeSocketFloat", VECTOR: "NodeSocketVector"}
 #: Group node type by tree type.
 GROUP_NODES = {"ShaderNodeTree": "ShaderNodeGroup", "CompositorNodeTree": "CompositorNodeGroup"}
 _KINDS = {"ShaderNodeTree": stamps.PART, "CompositorNodeTree": stamps.COMPOSITOR_PART}
+_GROUP_NODE_TYPES = frozenset(GROUP_NODES.values())
+#: A part's tree type by its kind's stamp.
+_PART_TREE_TYPES = {kind.name: kind.tree_type for kind in stamps.PART_KINDS}
 
 
 def kind_for(tree_type: str) -> stamps.GroupKind:
@@ -150,13 +153,17 @@ def part_of(key: str) -> Part | None:
 
 
 def is_part(tree: bpy.types.NodeTree | None) -> bool:
-    """True for a part's group."""
-    return stamps.kind_of(tree) in stamps.PART_KINDS
+    """True for a part's group: its kind stamp names a part's kind of its tree type (parts came after the kind stamp,
+    so every part carries one; read directly, not through :func:`.stamps.kind_of`, which also recognises groups of
+    releases before the stamp: this runs for every group node of a walk, :func:`used_parts`)."""
+    return tree is not None and _PART_TREE_TYPES.get(tree.get(stamps.KIND_KEY)) == tree.bl_idname
 
 
 def instanced_part(node: bpy.types.Node) -> bpy.types.NodeTree | None:
     """The part's group ``node`` instances, or None (not a group node, or a group that is not a part)."""
-    inner = getattr(node, "node_tree", None) if node.bl_idname in GROUP_NODES.values() else None
+    if node.bl_idname not in _GROUP_NODE_TYPES:
+        return None
+    inner = node.node_tree
     return inner if is_part(inner) else None
 
 
@@ -166,15 +173,34 @@ def inline_count(tree: bpy.types.NodeTree) -> int:
     return len(inline_nodes(tree))
 
 
-def used_parts(tree: bpy.types.NodeTree) -> set:
-    """The parts' groups ``tree`` instances, directly or through other parts."""
-    found = set()
+def used_parts(tree: bpy.types.NodeTree, found: set | None = None) -> set:
+    """The parts' groups ``tree`` instances, directly or through other parts, added to ``found`` (a new set when
+    None) and returned: each part is walked once however many groups or parts instance it."""
+    found = set() if found is None else found
     for node in tree.nodes:
         inner = instanced_part(node)
         if inner is not None and inner not in found:
             found.add(inner)
-            found |= used_parts(inner)
+            used_parts(inner, found)
     return found
+
+
+def nodes_with_parts(trees: Iterable[bpy.types.NodeTree]) -> Iterator[tuple[bpy.types.NodeTree, bpy.types.Node, str]]:
+    """(tree, node, its ``bl_idname``) for every node of ``trees`` and of the parts they instance, directly or through
+    other parts, each part's nodes once: one pass that reads each node's type once (a scan of the table's image nodes
+    on every bake, :mod:`atmos_addon.blender.apply.precise_tables`)."""
+    seen: set = set()
+    todo = list(trees)
+    while todo:
+        tree = todo.pop(0)
+        for node in tree.nodes:
+            idname = node.bl_idname
+            if idname in _GROUP_NODE_TYPES:
+                inner = node.node_tree
+                if inner is not None and inner not in seen and is_part(inner):
+                    seen.add(inner)
+                    todo.append(inner)
+            yield tree, node, idname
 
 
 def inline_nodes(tree: bpy.types.NodeTree) -> list:

@@ -157,3 +157,45 @@ def test_a_part_name_is_one_part_and_a_reload_redefines_it():
             parts.define("Atmos Test Part", 1, (("x", parts.FLOAT),), (("y", parts.FLOAT),), other)
     finally:
         parts.PARTS.pop("Atmos Test Part", None)
+
+
+def test_one_walk_reads_each_node_once_and_the_table_reaches_every_part():
+    scene = _new_user_scene()
+    api.enable(scene, preset="clear")
+    named = [bpy.data.node_groups[stamps.SKY.name], bpy.data.node_groups[stamps.PER_PIXEL.name]]
+    used = set()
+    for tree in named:
+        parts.used_parts(tree, used)
+    walked = [(tree.name, node.name, idname) for tree, node, idname in parts.nodes_with_parts(named)]
+    assert len(walked) == len(set(walked)), "a part's nodes walked twice"
+    assert set(walked) == {(tree.name, node.name, node.bl_idname) for tree in named + list(used) for node in tree.nodes}
+    assert used and used == set().union(*(parts.used_parts(tree) for tree in named))   # the shared set: the same parts
+    assert ([tree.name for tree in bpy.data.node_groups if parts.is_part(tree)]
+            == [tree.name for tree in bpy.data.node_groups if stamps.kind_of(tree) in stamps.PART_KINDS])
+    # The table image deleted by hand: the next bake makes a new one and points every table node at it, inside the
+    # parts too (the bake walks the groups once, :func:`parts.nodes_with_parts`).
+    bpy.data.images.remove(bpy.data.images["Atmos Precise Table"])
+    orchestrator.refresh_effect(scene)
+    image = bpy.data.images["Atmos Precise Table"]
+    taps = [(tree.name, node) for tree, node, idname in parts.nodes_with_parts(named)
+            if idname in ("ShaderNodeTexImage", "CompositorNodeImage")]
+    assert {name for name, _ in taps} == {"Atmos Table Sample (Row)", "Atmos Table Sample (Compositor)"}
+    assert all(node.image == image for _, node in taps)
+    assert group_integrity.edited_groups(force=True) == []
+
+
+def test_the_status_counts_the_per_pixel_groups_nodes_after_each_rebuild():
+    scene = _new_user_scene()
+    api.enable(scene, preset="clear")
+
+    def counted() -> int:
+        return int(scene.atmos.status_built.split("per pixel: ")[1].split()[0])
+
+    per_pixel = bpy.data.node_groups[stamps.PER_PIXEL.name]
+    precise_count = parts.inline_count(per_pixel)
+    assert counted() == precise_count
+    scene.atmos.quality = "FAST"        # the same group rebuilt in place for the Fast level: another count
+    assert bpy.data.node_groups[stamps.PER_PIXEL.name] == per_pixel
+    assert counted() == parts.inline_count(per_pixel) != precise_count
+    scene.atmos.quality = "PRECISE"
+    assert counted() == precise_count

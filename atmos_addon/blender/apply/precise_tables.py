@@ -137,14 +137,14 @@ def _link_image(image: bpy.types.Image) -> None:
                                                         groups.sky.SKY_GROUP_NAME, groups.stamps.SKY_VIEW.name,
                                                         groups.per_pixel.GROUP_NAME)]
     lighting = [tree for tree in bpy.data.node_groups if groups.sky_lighting.is_sky_lighting_group(tree)]
-    used = set().union(*(groups.parts.used_parts(group) for group in named + lighting if group is not None))
-    for group in named + lighting + sorted(used, key=lambda tree: tree.name):
-        stale = [node for node in (group.nodes if group is not None else ())
-                 if node.bl_idname in ("ShaderNodeTexImage", "CompositorNodeImage") and node.image != image]
-        if stale:
-            with group_integrity.owned_change(group):   # the table is ours to point at: no hand edit
-                for node in stale:
-                    node.image = image
+    stale: dict = {}
+    for tree, node, idname in groups.parts.nodes_with_parts(group for group in named + lighting if group is not None):
+        if idname in ("ShaderNodeTexImage", "CompositorNodeImage") and node.image != image:
+            stale.setdefault(tree, []).append(node)
+    for tree, nodes in stale.items():
+        with group_integrity.owned_change(tree):   # the table is ours to point at: no hand edit
+            for node in nodes:
+                node.image = image
 
 
 def _write_parameters(scene, origin: tuple[int, int], camera_altitude_m: float, tile: Tile, top_m: float,
