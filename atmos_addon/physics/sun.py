@@ -158,15 +158,16 @@ def sun_table_sines(sun_angular_radius_rad: float = SUN_ANGULAR_RADIUS_RAD, rows
 def _table_geometry(planet_radius_m: float, rayleigh_scale_height_m: float, mie_scale_height_m: float,
                     atmosphere_height_m: float, sun_angular_radius_rad: float, limb_darkening: float,
                     rows: int) -> tuple[np.ndarray, ...]:
-    """What :func:`sun_irradiance_table` keeps per geometry: (sines, weights, fractions, and the Rayleigh, haze and
-    ozone optical depths to space of every row's disk points per unit sea-level coefficient), read-only."""
+    """What :func:`sun_irradiance_table` keeps per geometry: (sines, the disk points' weights as rows (rows, 1, n),
+    fractions (rows, 1), and the optical depths to space of every row's disk points per unit sea-level coefficient,
+    (rows, n, 3): Rayleigh, haze, ozone), read-only."""
     sines = sun_table_sines(sun_angular_radius_rad, rows)
     weight, zenith, fraction = _visible_disk(np.arcsin(sines), 0.0, sun_angular_radius_rad, limb_darkening)
     shell = Atmosphere(planet_radius=planet_radius_m, atmosphere_height=atmosphere_height_m)   # the ozone's path
-    arrays = (sines, weight, fraction,
-              layer_optical_depth(0.0, zenith, 1.0, rayleigh_scale_height_m, planet_radius_m),
-              layer_optical_depth(0.0, zenith, 1.0, mie_scale_height_m, planet_radius_m),
-              ozone_slant_column(0.0, np.cos(zenith), shell)[..., np.newaxis])
+    depths = np.concatenate([layer_optical_depth(0.0, zenith, 1.0, rayleigh_scale_height_m, planet_radius_m),
+                             layer_optical_depth(0.0, zenith, 1.0, mie_scale_height_m, planet_radius_m),
+                             ozone_slant_column(0.0, np.cos(zenith), shell)[..., np.newaxis]], axis=-1)
+    arrays = (sines, np.ascontiguousarray(np.swapaxes(weight, -1, -2)), fraction, depths)
     for array in arrays:
         array.setflags(write=False)
     return arrays
@@ -185,16 +186,17 @@ def sun_irradiance_table(atm: Atmosphere, sun_angular_radius_rad: float = SUN_AN
     in the sea-level coefficients, tau = beta_R H_R Ch_R + beta_M,ex H_M Ch_M + beta_O3 X_O3, and the disk's points,
     weights and Chapman functions and ozone slant columns depend only on the geometry: they are computed once per
     geometry (:func:`_table_geometry`, 0.1 s, the last four kept), and an edit of the air, the haze or the ozone
-    costs one linear combination and its exponential (about 1 ms, where the quadratures took 84 ms on every edit),
-    the same numbers.
+    costs two matrix products and an exponential (0.4 ms, where the quadratures took 84 ms on every edit).
     """
-    sines, weight, fraction, rayleigh, haze, ozone = _table_geometry(
+    sines, weight_rows, fraction, depths = _table_geometry(
         float(atm.planet_radius), float(atm.rayleigh_scale_height), float(atm.mie_scale_height),
         float(atm.atmosphere_height), float(sun_angular_radius_rad), float(limb_darkening), int(rows))
-    tau = rayleigh * atm.rayleigh_scattering + haze * atm.mie_extinction
-    if atm.ozone_column_du > 0.0:
-        tau = tau + ozone * atm.ozone_absorption
-    return sines, _disk_mean(weight, tau, fraction, atm)
+    ozone = atm.ozone_absorption if atm.ozone_column_du > 0.0 else np.zeros(3)
+    # tau and the disk's weighted mean as two matrix products: 0.4 ms where the broadcast sums took 0.9 ms (equal to
+    # :func:`_disk_mean` but for the order of the sums: within 1e-15 relative)
+    transmittance = depths @ -np.stack([atm.rayleigh_scattering, atm.mie_extinction, ozone])     # (rows, n, 3)
+    np.exp(transmittance, out=transmittance)
+    return sines, atm.sun_irradiance_top * (weight_rows @ transmittance)[:, 0, :] * fraction
 
 
 def interpolate_sun_irradiance(table: tuple[np.ndarray, np.ndarray], sine_elevation: ArrayLike) -> np.ndarray:
