@@ -120,6 +120,59 @@ def moves_over_time(obj) -> bool:
     return False
 
 
+def motion_objects(obj) -> list:
+    """``obj``, its parents and its constraints' targets (with theirs): every object whose animation or transform
+    can move it."""
+    found, todo, seen = [], [obj], set()
+    while todo:
+        current = todo.pop()
+        if current is None or current.as_pointer() in seen:
+            continue
+        seen.add(current.as_pointer())
+        found.append(current)
+        todo.append(current.parent)
+        todo.extend(getattr(constraint, "target", None) for constraint in current.constraints)
+    return found
+
+
+#: The scene settings of the Sun Position add-on (bundled with Blender until 4.1, an extension since), an artist's
+#: usual way to put the sun where it stands at a place, a date and a time: with its time, date or place keyed it
+#: turns its sun object from a frame-change handler, and the lamp itself carries no animation at all.
+SUN_POSITION = "sun_pos_properties"
+
+
+def sun_position_curves(scene) -> list:
+    """The keys' F-curves (action, NLA strips) and drivers of ``scene`` that animate the Sun Position add-on's
+    settings (``sun_pos_properties.time`` and the others)."""
+    animation = scene.animation_data
+    if animation is None:
+        return []
+    fcurves_of = groups().parameters.fcurves_of
+    actions = [animation.action] + [strip.action for track in animation.nla_tracks for strip in track.strips]
+    curves = list(animation.drivers) + [curve for action in actions if action is not None
+                                        for curve in fcurves_of(action)]
+    return [curve for curve in curves if curve.data_path.startswith(SUN_POSITION + ".")]
+
+
+def turned_by_sun_position(scene, obj) -> bool:
+    """True when the Sun Position add-on's settings of ``scene`` are animated and the object it turns is ``obj``, a
+    parent of it or a target of its constraints: the add-on then turns ``obj`` on every frame. Where the add-on is not
+    loaded (a farm, the ``bpy`` module) its settings are read from the file where Blender keeps them reachable (4.x;
+    5.x stores an unloaded add-on's settings out of Python's reach: any object may be the one, and nothing turns it
+    here, so a path sampled frame by frame stands still)."""
+    if obj is None or not sun_position_curves(scene):
+        return False
+    settings = getattr(scene, SUN_POSITION, None)
+    if settings is not None:                       # the add-on loaded
+        target = getattr(settings, "sun_object", None)
+    else:
+        stored = scene.get(SUN_POSITION)
+        if not hasattr(stored, "get"):
+            return True
+        target = stored.get("sun_object")
+    return target is not None and any(target == moved for moved in motion_objects(obj))
+
+
 def rendered_view_layers(scene) -> list:
     """The view layers a render of ``scene`` renders: those with *Use for Rendering*, all of them when none has it."""
     return [layer for layer in scene.view_layers if layer.use] or list(scene.view_layers)
@@ -138,5 +191,7 @@ def camera_moves(scene) -> bool:
 
 
 def is_sun_animated(scene) -> bool:
-    """True if the sun lamp's direction can change over time: it, or a parent, is animated or constrained."""
-    return moves_over_time(sun_object(scene))
+    """True if the sun lamp's direction can change over time: it, or a parent, is animated or constrained, or the Sun
+    Position add-on turns it from its animated settings (:func:`turned_by_sun_position`)."""
+    lamp = sun_object(scene)
+    return moves_over_time(lamp) or turned_by_sun_position(scene, lamp)

@@ -1,11 +1,12 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """An animated sun: what the Precise key tiles follow, kept current as the scene is edited.
 
-A sun lamp that moves over time (its own animation, a parent's, a constraint) changes the shader parameters and the
-lamp's colour and strength every frame; drivers on the lamp evaluate them (:mod:`.apply.sun_drivers`), on a farm
-without the add-on too. An older Atmos keyed them per frame: :func:`clear_baked_keys` removes those keys.
-:func:`bake_sun_animation` records the animated range and a digest of everything the sun's motion depends on
-(:func:`bake_inputs`); :func:`follow` re-bakes an animated scene's Precise key tiles when it changes.
+A sun lamp that moves over time (its own animation, a parent's, a constraint, the Sun Position add-on's animated
+settings) changes the shader parameters and the lamp's colour and strength every frame; drivers on the lamp evaluate
+them (:mod:`.apply.sun_drivers`), on a farm without the add-on too. An older Atmos keyed them per frame:
+:func:`clear_baked_keys` removes those keys. :func:`bake_sun_animation` records the animated range and a digest of
+everything the sun's motion depends on (:func:`bake_inputs`); :func:`follow` re-bakes an animated scene's Precise key
+tiles when it changes.
 """
 
 from __future__ import annotations
@@ -22,21 +23,6 @@ from .debounce import Debounced
 
 #: Scene custom property: the frame range baked, the lamp data whose keys the bake wrote and the inputs' digest.
 BAKED_KEY = "atmos_sun_baked"
-
-
-def _motion_objects(obj) -> list:
-    """``obj``, its parents and its constraints' targets (with theirs): every object whose animation or transform
-    can move it."""
-    found, todo, seen = [], [obj], set()
-    while todo:
-        current = todo.pop()
-        if current is None or current.as_pointer() in seen:
-            continue
-        seen.add(current.as_pointer())
-        found.append(current)
-        todo.append(current.parent)
-        todo.extend(getattr(constraint, "target", None) for constraint in current.constraints)
-    return found
 
 
 def _curve_text(curve) -> str:
@@ -110,15 +96,20 @@ def _object_text(obj) -> list[str]:
 
 def bake_inputs(scene: bpy.types.Scene) -> str:
     """A digest of everything the sun's baked keys depend on: the atmosphere and sun settings, the frame range,
-    and what moves the sun lamp (:func:`_object_text` of the lamp, its parents and constraint targets). A bake
-    whose stored digest differs is stale (:func:`follow`)."""
+    and what moves the sun lamp (:func:`_object_text` of the lamp, its parents and constraint targets; the Sun
+    Position add-on's keys and settings where it turns the lamp). A bake whose stored digest differs is stale
+    (:func:`follow`)."""
     settings = scene.atmos
     key, _ = scene_reading.atmosphere_with_key(scene)
     lamp = scene_reading.sun_object(scene)
     parts = [repr(key), repr((float(settings.sun_angular_diameter), bool(settings.drive_sun_lamp),
                               scene.frame_start, scene.frame_end))]
-    for obj in _motion_objects(lamp):
+    for obj in scene_reading.motion_objects(lamp):
         parts.extend(_object_text(obj))
+    if scene_reading.turned_by_sun_position(scene, lamp):   # the add-on's keys and its place and date
+        parts.extend(_curve_text(curve) for curve in scene_reading.sun_position_curves(scene))
+        stored = scene.get(scene_reading.SUN_POSITION)
+        parts.append(repr(sorted(stored.to_dict().items())) if hasattr(stored, "to_dict") else "")
     return hashlib.sha1("\n".join(parts).encode()).hexdigest()
 
 

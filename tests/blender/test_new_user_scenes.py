@@ -771,3 +771,67 @@ def test_a_world_linked_from_a_library_gets_the_sky_in_a_copy(tmp_path):
     api.disable(scene)
     assert scene.world.name == "Studio" and scene.world.library is not None
     assert copy_name not in bpy.data.worlds
+
+
+class _SunPositionStandIn(bpy.types.PropertyGroup):
+    """The two settings of the Sun Position add-on this test needs (its time of day, the object it turns)."""
+
+    time: bpy.props.FloatProperty(default=12.0)
+    sun_object: bpy.props.PointerProperty(type=bpy.types.Object)
+
+
+def _stand_in_elevation_deg(time_h: float) -> float:
+    return 2.0 + 4.0 * (time_h - 6.0)
+
+
+def test_a_sun_the_sun_position_add_on_turns_gets_key_tiles_along_its_path():
+    """The Sun Position add-on (bundled until Blender 4.1, an extension since) turns its sun object from a frame-change
+    handler, following its own keyed settings (``scene.sun_pos_properties.time``): the lamp itself carries no
+    animation. A stand-in registers the same settings' name and turns the lamp the same way. Until December 2026
+    Atmos saw a still sun there and baked one Precise tile, with which a farm rendered every frame of a sunrise. Now
+    the key tiles follow the sun's path frame by frame; an edit of the add-on's keys makes the record stale; the
+    add-on turning another lamp leaves this one still; and where the add-on is not loaded (a farm, the ``bpy``
+    module) the file still says the lamp is turned, nothing turns it, and one tile serves the still sun."""
+    from atmos_addon import api
+    from atmos_addon.blender import scene_reading, sun_bake
+    from atmos_addon.blender.apply import precise_tables
+
+    @bpy.app.handlers.persistent    # as the add-on's: it outlives a file load
+    def turn(scene, *_):
+        settings = scene.sun_pos_properties
+        if settings.sun_object is not None:
+            settings.sun_object.rotation_euler = (math.radians(90.0 - _stand_in_elevation_deg(settings.time)), 0.0,
+                                                  math.pi)
+
+    bpy.utils.register_class(_SunPositionStandIn)
+    bpy.types.Scene.sun_pos_properties = bpy.props.PointerProperty(type=_SunPositionStandIn)
+    bpy.app.handlers.frame_change_post.append(turn)
+    try:
+        scene = new_user_scene(16, 8)
+        sun = bpy.data.objects["Sun"]
+        other = bpy.data.objects.new("Other Sun", bpy.data.lights.new("Other Sun", "SUN"))
+        scene.frame_start, scene.frame_end = 1, 5
+        scene.sun_pos_properties.sun_object = sun
+        for frame, time_h in ((1, 6.0), (5, 10.0)):
+            scene.sun_pos_properties.time = time_h
+            scene.keyframe_insert("sun_pos_properties.time", frame=frame)
+        curve = scene_reading.sun_position_curves(scene)[0]
+        scene.frame_set(1)
+        assert not scene_reading.moves_over_time(sun) and scene_reading.is_sun_animated(scene)
+        api.enable(scene, preset="clear")
+        elevations = [math.degrees(elevation) for _, _, elevation in precise_tables.frame_inputs(scene)]
+        assert elevations == pytest.approx([_stand_in_elevation_deg(curve.evaluate(f)) for f in range(1, 6)], abs=1e-4)
+        assert elevations[-1] - elevations[0] > 10.0 and scene[facts.KEY_TILES] > 1
+        assert sun_bake.is_bake_current(scene)
+        curve.keyframe_points[-1].co.y = 9.0              # the add-on's keys edited: the record is stale
+        assert not sun_bake.is_bake_current(scene)
+        scene.sun_pos_properties.sun_object = other       # the add-on turns another lamp: this one stands still
+        assert not scene_reading.is_sun_animated(scene)
+        scene.sun_pos_properties.sun_object = sun
+    finally:
+        bpy.app.handlers.frame_change_post.remove(turn)
+        del bpy.types.Scene.sun_pos_properties
+        bpy.utils.unregister_class(_SunPositionStandIn)
+    assert scene_reading.is_sun_animated(scene)   # what the file stores (4.x), or any lamp may be the one (5.x)
+    precise_tables.bake(scene, force=True)
+    assert scene[facts.KEY_TILES] == 1
