@@ -229,11 +229,12 @@ def _follow_tables_and_keys(scene) -> None:
     follow_key_tiles(scene, key_tiles)
 
 
-def bake_tables(scene, *, force: bool = False) -> int:
-    """Bake the Precise tables (:func:`.precise_tables.bake`) and rebuild the groups when the blend of key tiles
-    came or went with them (a camera or sun that started or stopped moving); the number of tiles baked."""
+def bake_tables(scene, *, force: bool = False, sampled=None) -> int:
+    """Bake the Precise tables (:func:`.precise_tables.bake`; ``sampled``: the frames an enable sampled for its first
+    bake, :class:`.precise_tables.Sampled`) and rebuild the groups when the blend of key tiles came or went with them
+    (a camera or sun that started or stopped moving); the number of tiles baked."""
     key_tiles = scene.get(facts.KEY_TILES)
-    baked = precise_tables.bake(scene, force=force)
+    baked = precise_tables.bake(scene, force=force, sampled=sampled)
     follow_key_tiles(scene, key_tiles)
     return baked
 
@@ -278,10 +279,12 @@ def enable_effect(scene) -> Report:
     _set_enabled(scene, True)
     quality_choice.resolve(scene)
     plan = facts.plan_of(scene)
+    sampled = None
     if precise_tables.uses_precise(scene):
         # Before the materials: the groups link the table image as they are built. Pointing a group that 5000
         # materials already use at a new image re-evaluates every one of them (3.4 s of a 5000-material enable).
-        bake_tables(scene)
+        sampled = precise_tables.sample(scene)
+        bake_tables(scene, sampled=sampled)
         plan = facts.plan_of(scene)   # the bake decides the blend of key tiles: the groups below are built for it
     report = _apply_materials(scene, only_new=True)
     if plan.compositor is not None:
@@ -305,7 +308,9 @@ def enable_effect(scene) -> Report:
         report.messages.append(f"Animated sun: its light follows the lamp on every frame, "
                                f"{scene.frame_start}-{scene.frame_end} (drivers; no add-on needed to render)")
     if precise_tables.uses_precise(scene):
-        bake_tables(scene)   # a no-op when its inputs are those of the last bake
+        # A no-op when its inputs are those of the last bake; the frames not sampled again while the sun lamp and
+        # the camera are the ones they were, where they were.
+        bake_tables(scene, sampled=sampled)
         report.messages.append(precise_tables.describe())
     else:
         _drop_tables(scene)
