@@ -50,12 +50,18 @@ def direction_of(lamp) -> tuple[np.ndarray, str]:
     came from. A sun lamp shines along its local -Z axis, so the direction towards the sun is its local +Z axis."""
     if lamp is None:
         return np.array(DEFAULT_SUN_DIRECTION), "No sun lamp: using the default sun 45 degrees above the horizon"
-    axis = lamp.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0))
+    return direction_from_matrix(lamp.matrix_world, lamp.name)
+
+
+def direction_from_matrix(matrix, name: str) -> tuple[np.ndarray, str]:
+    """:func:`direction_of` a sun lamp named ``name`` whose world matrix is ``matrix`` (a lamp's at another frame,
+    :mod:`.motion_path`)."""
+    axis = matrix.to_3x3() @ Vector((0.0, 0.0, 1.0))
     if axis.length == 0.0:
-        return np.array(DEFAULT_SUN_DIRECTION), f"Sun lamp '{lamp.name}' has zero scale: using the default sun"
+        return np.array(DEFAULT_SUN_DIRECTION), f"Sun lamp '{name}' has zero scale: using the default sun"
     axis.normalize()
     elevation = math.degrees(math.asin(max(-1.0, min(1.0, axis.z))))
-    return np.array(axis), f"Sun: '{lamp.name}', {elevation:.1f} degrees above the horizon"
+    return np.array(axis), f"Sun: '{name}', {elevation:.1f} degrees above the horizon"
 
 
 def sun_direction(scene) -> tuple[np.ndarray, str]:

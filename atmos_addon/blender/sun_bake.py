@@ -16,7 +16,7 @@ import hashlib
 import bpy
 import numpy as np
 
-from . import scene_reading
+from . import motion_path, scene_reading
 from .apply import precise_tables
 from .apply.sun_lamp import LAMP_PATHS
 from .debounce import Debounced
@@ -47,24 +47,6 @@ _STATIC_CHANNELS = ("location", "rotation_euler", "rotation_quaternion", "rotati
                     "delta_location", "delta_rotation_euler", "delta_rotation_quaternion", "delta_scale")
 
 
-def _own_fcurves(animation) -> list:
-    """The F-curves of the action's slot this ID uses (Blender 4.4+ actions can hold several IDs' curves: the lamp's
-    light data keys land in the lamp object's action), or all of a legacy action's."""
-    action = animation.action
-    if action is None:
-        return []
-    slot = getattr(animation, "action_slot", None)
-    if slot is None or not hasattr(action, "layers"):
-        return list(getattr(action, "fcurves", ()))
-    curves = []
-    for layer in action.layers:
-        for strip in layer.strips:
-            bag = strip.channelbag(slot) if hasattr(strip, "channelbag") else None
-            if bag is not None:
-                curves.extend(bag.fcurves)
-    return curves
-
-
 def _object_text(obj) -> list[str]:
     """What moves ``obj`` over time, as text: its animation (action keys, drivers, NLA strips), the values of its
     channels that are not animated (read at any frame they are the same), its parenting and constraints."""
@@ -72,7 +54,7 @@ def _object_text(obj) -> list[str]:
     animated = set()
     animation = obj.animation_data
     if animation is not None:
-        curves = _own_fcurves(animation) + list(animation.drivers)
+        curves = motion_path.own_fcurves(animation) + list(animation.drivers)
         slot = getattr(animation, "action_slot", None)
         parts.append(f"{animation.action.name if animation.action else ''}|{slot.identifier if slot else ''}")
         for curve in curves:
