@@ -78,6 +78,8 @@ ROWS = (
     ("refresh_s", "refresh (nothing new)", None),
     ("mode_switch_s", "mode switch Per Pixel -> Compositor -> Per Pixel (mean of the two)", None),
     ("disable_s", "disable", None),
+    ("enable_animated_s", "enable, the same scene with its sun keyed over 250 frames (every frame's sun read, its key "
+     "tiles baked)", None),
 )
 
 
@@ -373,7 +375,8 @@ Python wall time of one call in background mode (the `bpy` module), not render t
 The scene: {objects} mesh objects sharing {materials} meshes, one node-based material each (Principled
 BSDF), a camera and a sun lamp. The sync rows time {repeats} writes of `scene.atmos.mie_scattering_per_km`
 (each write's `update=` callback syncs the shader parameters) and give the mean; the small scene has
-{small} materials and 40 objects.
+{small} materials and 40 objects. The last row builds the scene again with its sun keyed from 30 to 2 deg over
+250 frames and enables it (Precise: every frame's sun elevation read, the key tiles along it baked).
 
 {table}
 

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """One Blender version's scale measurements for ``tools/bench.py``: prints one JSON line (seconds / ms).
 
-    .venv/bpy-5.2.3/bin/python tools/bench_scale.py --materials 5000 --objects 20000 [--profile]
+    .venv/bpy-5.2.3/bin/python tools/bench_scale.py --materials 5000 --objects 20000 [--profile] [--animated-frames 250]
 """
 
 from __future__ import annotations
@@ -51,6 +51,16 @@ def build_scene(n_materials: int, n_objects: int):
         objects.link(bpy.data.objects.new(f"Object {index}", meshes[index % n_materials]))
     bpy.context.view_layer.update()
     return scene
+
+
+def key_the_sun(scene, frames: int) -> None:
+    """Key the scene's sun lamp from 30 deg up on frame 1 to 2 deg on frame ``frames`` (a sunset)."""
+    sun = next(o for o in scene.objects if o.type == "LIGHT")
+    scene.frame_start, scene.frame_end = 1, frames
+    for frame, elevation in ((1, 30.0), (frames, 2.0)):
+        sun.rotation_euler = (math.radians(90.0 - elevation), 0.0, 0.5)
+        sun.keyframe_insert("rotation_euler", frame=frame)
+    scene.frame_set(1)
 
 
 def time_syncs(scene, repeats: int) -> float:
@@ -111,6 +121,8 @@ def main() -> None:
     parser.add_argument("--small", type=int, default=10)
     parser.add_argument("--repeats", type=int, default=50)
     parser.add_argument("--profile", action="store_true")
+    parser.add_argument("--animated-frames", type=int, default=250,
+                        help="frames of the sun's keys for the animated enable (0: not measured)")
     args = parser.parse_args()
     atmos_addon.register()
     results = {"blender": bpy.app.version_string}
@@ -162,6 +174,13 @@ def main() -> None:
     start = time.perf_counter()
     orchestrator.disable_effect(scene)
     results["disable_s"] = time.perf_counter() - start
+    if args.animated_frames > 1:   # the same scene, its sun keyed: every frame's inputs and the key tiles
+        scene = build_scene(args.materials, args.objects)
+        key_the_sun(scene, args.animated_frames)
+        start = time.perf_counter()
+        orchestrator.enable_effect(scene)
+        results["enable_animated_s"] = time.perf_counter() - start
+        results["animated_key_tiles"] = int(scene.get("atmos_precise_key_tiles", 1))
     atmos_addon.unregister()
     print(json.dumps(results), flush=True)
 
