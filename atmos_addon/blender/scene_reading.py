@@ -160,6 +160,27 @@ def sun_position_curves(scene) -> list:
     return [curve for curve in curves if curve.data_path.startswith(SUN_POSITION + ".")]
 
 
+def sun_position_settings(scene) -> str:
+    """The Sun Position add-on's settings of ``scene`` as text (its place, date, time...: where it puts the sun), read
+    through the add-on where it is loaded, else from what the file stores where Blender keeps that reachable (4.x);
+    empty when neither."""
+    settings = getattr(scene, SUN_POSITION, None)
+    if settings is None:
+        stored = scene.get(SUN_POSITION)
+        return repr(sorted(stored.to_dict().items())) if hasattr(stored, "to_dict") else ""
+    values = []
+    for prop in settings.bl_rna.properties:
+        if prop.identifier == "rna_type" or prop.type == "COLLECTION":
+            continue
+        value = getattr(settings, prop.identifier)
+        if prop.type == "POINTER":
+            value = getattr(value, "name", None)
+        elif getattr(prop, "is_array", False):
+            value = tuple(value)
+        values.append((prop.identifier, value))
+    return repr(values)
+
+
 def turned_by_sun_position(scene, obj) -> bool:
     """True when the Sun Position add-on's settings of ``scene`` are animated and the object it turns is ``obj``, a
     parent of it or a target of its constraints: the add-on then turns ``obj`` on every frame. Where the add-on is not

@@ -90,8 +90,7 @@ def bake_inputs(scene: bpy.types.Scene) -> str:
         parts.extend(_object_text(obj))
     if scene_reading.turned_by_sun_position(scene, lamp):   # the add-on's keys and its place and date
         parts.extend(_curve_text(curve) for curve in scene_reading.sun_position_curves(scene))
-        stored = scene.get(scene_reading.SUN_POSITION)
-        parts.append(repr(sorted(stored.to_dict().items())) if hasattr(stored, "to_dict") else "")
+        parts.append(scene_reading.sun_position_settings(scene))
     return hashlib.sha1("\n".join(parts).encode()).hexdigest()
 
 

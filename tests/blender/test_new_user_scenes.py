@@ -774,8 +774,9 @@ def test_a_world_linked_from_a_library_gets_the_sky_in_a_copy(tmp_path):
 
 
 class _SunPositionStandIn(bpy.types.PropertyGroup):
-    """The two settings of the Sun Position add-on this test needs (its time of day, the object it turns)."""
+    """Three settings of the Sun Position add-on (its place, its time of day, the object it turns)."""
 
+    latitude: bpy.props.FloatProperty(default=48.0)
     time: bpy.props.FloatProperty(default=12.0)
     sun_object: bpy.props.PointerProperty(type=bpy.types.Object)
 
@@ -824,6 +825,10 @@ def test_a_sun_the_sun_position_add_on_turns_gets_key_tiles_along_its_path():
         assert elevations[-1] - elevations[0] > 10.0 and scene[facts.KEY_TILES] > 1
         assert sun_bake.is_bake_current(scene)
         curve.keyframe_points[-1].co.y = 9.0              # the add-on's keys edited: the record is stale
+        assert not sun_bake.is_bake_current(scene)
+        sun_bake.bake_sun_animation(scene)
+        assert sun_bake.is_bake_current(scene)
+        scene.sun_pos_properties.latitude = 60.0          # its place edited: the sun's path too, stale
         assert not sun_bake.is_bake_current(scene)
         scene.sun_pos_properties.sun_object = other       # the add-on turns another lamp: this one stands still
         assert not scene_reading.is_sun_animated(scene)
