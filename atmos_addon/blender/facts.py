@@ -7,7 +7,7 @@ Everything Atmos builds for a scene follows from :func:`plan_of`; :mod:`atmos_ad
 from __future__ import annotations
 
 from ..plan import Plan, SceneFacts, plan_for
-from .scene_reading import groups
+from .scene_reading import animation_curves, groups
 
 #: Scene property: the number of key tiles the scene's last Precise bake wrote (``apply.precise_tables``).
 KEY_TILES = "atmos_precise_key_tiles"
@@ -35,13 +35,7 @@ def _own_facts(scene, other_modes: tuple[str, ...] = ()) -> SceneFacts:
 def animated_settings(scene) -> tuple[str, ...]:
     """The interface names of ``scene``'s Atmos settings that keys (its action, its NLA strips) or drivers change
     over time, in the order found. Atmos's own keys and drivers are on other paths (the scene's custom properties)."""
-    animation = scene.animation_data
-    if animation is None:
-        return ()
-    fcurves_of = groups().parameters.fcurves_of
-    actions = [animation.action] + [strip.action for track in animation.nla_tracks for strip in track.strips]
-    paths = [curve.data_path for curve in animation.drivers]
-    paths += [curve.data_path for action in actions if action is not None for curve in fcurves_of(action)]
+    paths = [curve.data_path for curve in animation_curves(scene)]
     properties = scene.atmos.bl_rna.properties
     names: list[str] = []
     for path in paths:

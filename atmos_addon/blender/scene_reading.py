@@ -147,17 +147,29 @@ def motion_objects(obj) -> list:
 SUN_POSITION = "sun_pos_properties"
 
 
-def sun_position_curves(scene) -> list:
-    """The keys' F-curves (action, NLA strips) and drivers of ``scene`` that animate the Sun Position add-on's
-    settings (``sun_pos_properties.time`` and the others)."""
-    animation = scene.animation_data
+def animation_curves(idblock) -> list:
+    """The drivers of ``idblock``, then the F-curves of its action and of its NLA strips' actions (none without
+    animation data)."""
+    animation = idblock.animation_data
     if animation is None:
         return []
     fcurves_of = groups().parameters.fcurves_of
     actions = [animation.action] + [strip.action for track in animation.nla_tracks for strip in track.strips]
-    curves = list(animation.drivers) + [curve for action in actions if action is not None
-                                        for curve in fcurves_of(action)]
-    return [curve for curve in curves if curve.data_path.startswith(SUN_POSITION + ".")]
+    return list(animation.drivers) + [curve for action in actions if action is not None
+                                      for curve in fcurves_of(action)]
+
+
+def sun_position_curves(scene) -> list:
+    """The keys' F-curves (action, NLA strips) and drivers of ``scene`` that animate the Sun Position add-on's
+    settings (``sun_pos_properties.time`` and the others)."""
+    return [curve for curve in animation_curves(scene) if curve.data_path.startswith(SUN_POSITION + ".")]
+
+
+def _stored_sun_position(scene):
+    """The Sun Position add-on's settings as the file stores them where the add-on is not loaded (an ID property
+    group on 4.x; None on 5.x, which keeps them out of Python's reach, or where there are none)."""
+    stored = scene.get(SUN_POSITION)
+    return stored if hasattr(stored, "to_dict") else None
 
 
 def sun_position_settings(scene) -> str:
@@ -166,8 +178,8 @@ def sun_position_settings(scene) -> str:
     empty when neither."""
     settings = getattr(scene, SUN_POSITION, None)
     if settings is None:
-        stored = scene.get(SUN_POSITION)
-        return repr(sorted(stored.to_dict().items())) if hasattr(stored, "to_dict") else ""
+        stored = _stored_sun_position(scene)
+        return repr(sorted(stored.to_dict().items())) if stored is not None else ""
     values = []
     for prop in settings.bl_rna.properties:
         if prop.identifier == "rna_type" or prop.type == "COLLECTION":
@@ -193,8 +205,8 @@ def turned_by_sun_position(scene, obj) -> bool:
     if settings is not None:                       # the add-on loaded
         target = getattr(settings, "sun_object", None)
     else:
-        stored = scene.get(SUN_POSITION)
-        if not hasattr(stored, "get"):
+        stored = _stored_sun_position(scene)
+        if stored is None:
             return True
         target = stored.get("sun_object")
     return target is not None and any(target == moved for moved in motion_objects(obj))
