@@ -391,11 +391,14 @@ NOTES = """## What the numbers say
   (`tests/blender/test_robustness.py`); the interface's part of a sun or camera move 6-8 ms, a sun move among the
   banked key tiles shown in 8 ms, a camera moved sideways 0.3 ms with no tile integrated (met); a sun elevation or
   camera altitude change still bakes its tile (0.30-0.36 s, in the interface on a worker thread): the "no re-bake"
-  is not met, as the tile is camera-centred and baked per sun elevation (tables that depend on neither,
-  Bruneton's or Hillaire's parametrisations, are not built); an atmosphere edit re-bakes in 1.80 s in the
-  background (target 1 s: not met; the tables alone 1.36-1.38 s on 2 cores), its first look in the interface in
-  0.75 s (met); enable on 5000 materials / 20000 objects 1.31-1.49 s (target 1 s: not met; below, per edit);
-  the sync (an older issue's 5 ms) 4.71-5.40 ms on 5.2.3 and 5.3.0, 6.80-8.83 ms on 4.5.15.
+  is not met, as the tile is camera-centred and baked per sun elevation; the table that depends on neither,
+  Bruneton's 4-D one (Hillaire's sky-view and aerial-perspective tables are per frame like the tile), was built and
+  measured against the tile (`tools/measure_sun_free_table.py`, docs/quality.md): 33-40 s to bake per atmosphere
+  on 2 cores, 33.6 MB in every file, and on Earth further from the exact integrals (beyond 30 km 21 % of the
+  horizon sky at the 99th percentile against the tile's 3.7 %), so it is not adopted; an atmosphere edit re-bakes
+  in 1.80 s in the background (target 1 s: not met; the tables alone 1.36-1.38 s on 2 cores), its first look in
+  the interface in 0.75 s (met); enable on 5000 materials / 20000 objects 1.31-1.49 s (target 1 s: not met;
+  below, per edit); the sync (an older issue's 5 ms) 4.71-5.40 ms on 5.2.3 and 5.3.0, 6.80-8.83 ms on 4.5.15.
 - **Render**: the default costs 1.11x Blender's sky in Cycles in this run (stop 54, nothing that renders changed;
   1.11x in a run at the stop's start too), 1.12x at stop 53 (nothing that renders changed;
   a machine that built the tables 1.2-1.3x slower than the run before's, with the same code), 1.11x in the two runs

@@ -1198,37 +1198,9 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
         azimuth = np.linspace(0.0, np.pi, shape.azimuths)[None, :, None, None]       # (1, A, 1, 1)
         sin_s, cos_s = math.sin(sun_elevation_rad), math.cos(sun_elevation_rad)
         nu = cos_e * np.cos(azimuth) * cos_s + sin_e * sin_s                          # (H, A, D, 1)
-        w = np.linspace(0.0, 1.0, RAY_SAMPLES)
-        t = d * w * w                                                                 # (1, 1, D, S)
-        radius = np.sqrt(np.maximum(r_c * r_c + 2.0 * r_c * t * sin_e + t * t, 0.0))  # (H, 1, D, S)
-        h = np.maximum(radius - atm.planet_radius, 0.0)
-        n_r, n_m = np.exp(-h / atm.rayleigh_scale_height)[..., None], np.exp(-h / atm.mie_scale_height)[..., None]
-        beta_ex = local_extinction(atm, n_r, n_m, h)                                  # (H, 1, D, S, 3)
-        dt_dw = (2.0 * d * w)[..., None]                                              # (1, 1, D, S, 1)
-        dw = w[1] - w[0]
-        f = beta_ex * dt_dw
-        tau_to = np.concatenate([np.zeros_like(f[..., :1, :]),
-                                 np.cumsum(0.5 * (f[..., 1:, :] + f[..., :-1, :]) * dw, axis=-2)], axis=-2)
-        view_t = np.exp(-tau_to)
-        tau = np.sum(f * _simpson_weights(RAY_SAMPLES)[:, None], axis=-2)             # (H, 1, D, 3)
-        view_t = np.where(tau_to > 0.0, np.exp(-tau_to * (tau[..., None, :] / np.maximum(tau_to[..., -1:, :], 1e-300))),
-                          view_t)                                                     # rescaled to the Simpson total
-        mu_s = (r_c * sin_s + t * nu) / np.maximum(radius, 1.0)                       # (H, A, D, S)
-        sun_t = sun_table(radius, mu_s)                                               # 0 in the planet's shadow
-        weights = (_simpson_weights(RAY_SAMPLES)[:, None] * dt_dw)                    # (1, 1, D, S, 1)
-        j_r = np.sum(weights * view_t * atm.rayleigh_scattering * n_r * sun_t, axis=-2)
-        j_m = np.sum(weights * view_t * atm.mie_scattering * n_m * sun_t, axis=-2)
-        start_r = atm.rayleigh_scattering * n_r[..., 0, :] * sun_t[..., 0, :]
-        if multiple_scattering:
-            view_z = (r_c * sin_e + t) / np.maximum(radius, 1.0)                       # local zenith cosine of the ray
-            view_x = (nu - mu_s * view_z) / np.sqrt(np.maximum(1.0 - mu_s * mu_s, 1e-12))   # ... toward the sun
-            s_r, s_m = ms_table.scattered(np.broadcast_to(h, mu_s.shape), mu_s, view_z, view_x)
-            source = atm.rayleigh_scattering * n_r * s_r + atm.mie_scattering * n_m * s_m
-            phase = phase_rayleigh(nu)                                                 # (H, A, D, 1)
-            j_r = j_r + np.sum(weights * view_t * source, axis=-2) / phase
-            start_r = start_r + source[..., 0, :] / phase
-        start_m = atm.mie_scattering * n_m[..., 0, :] * sun_t[..., 0, :]
-        local_ex = beta_ex[..., 0, :]                                                 # the camera's extinction
+        tau, j_r, j_m, start_r, start_m, local_ex = ray_integrals(
+            atm, (sun_table, ms_table), r_c, sin_e[..., 0], sin_s, nu[..., 0], d[..., 0],
+            multiple_scattering=multiple_scattering)
         one_minus_t = -np.expm1(-tau)
         small = one_minus_t < 1e-9      # d -> 0: J / (1 - T) -> the local scattering over the local extinction
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -1249,6 +1221,54 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     rayleigh, mie = camera_sky_view(tile, sun_elevation_rad, atm)
     return dataclasses.replace(tile, sky_radiance=radiance, sky_ground_transmittance=ground_transmittance,
                                camera_sky_rayleigh=rayleigh, camera_sky_mie=mie)
+
+
+def ray_integrals(atm: Atmosphere, tables: tuple, radius_m: ArrayLike, view_cos_zenith: ArrayLike,
+                  sun_cos_zenith: ArrayLike, nu: ArrayLike, length_m: ArrayLike, *,
+                  multiple_scattering: bool = True) -> tuple[np.ndarray, ...]:
+    """The integrals of the module docstring along straight rays, per unit E_top: each ray starts at radius
+    ``radius_m`` with view and sun zenith cosines ``view_cos_zenith`` and ``sun_cos_zenith`` there, nu = v . l, and
+    is ``length_m`` long (arrays that broadcast, shape (...)); ``tables``: (sun transmittance, multiple scattering),
+    :func:`atmosphere_tables`. Returns (tau, J_R, J_M, the Rayleigh and Mie scattering and the extinction at the
+    start), each (..., 3); J_R holds J_ms / Phi_R(nu) with ``multiple_scattering``. Simpson's rule in
+    w = sqrt(t / d) on :data:`RAY_SAMPLES` samples (dense near the start), the optical depth to each sample by the
+    trapezoid rule on the same samples, rescaled to the Simpson total. :func:`integrate_tile` integrates its cells
+    with it, ``tools/measure_sun_free_table.py`` rays from anywhere; pass each input in its smallest shape (the tile's
+    geometry is (H, 1, D), its angles (H, A, D): the geometry's arrays stay small)."""
+    sun_table, ms_table = tables
+    r_c, sin_e, sin_s, nu, d = (np.asarray(x, dtype=np.float64)[..., None]
+                                for x in (radius_m, view_cos_zenith, sun_cos_zenith, nu, length_m))
+    w = np.linspace(0.0, 1.0, RAY_SAMPLES)
+    t = d * w * w                                                                     # (..., S)
+    radius = np.sqrt(np.maximum(r_c * r_c + 2.0 * r_c * t * sin_e + t * t, 0.0))
+    h = np.maximum(radius - atm.planet_radius, 0.0)
+    n_r, n_m = np.exp(-h / atm.rayleigh_scale_height)[..., None], np.exp(-h / atm.mie_scale_height)[..., None]
+    beta_ex = local_extinction(atm, n_r, n_m, h)                                      # (..., S, 3)
+    dt_dw = (2.0 * d * w)[..., None]                                                  # (..., S, 1)
+    dw = w[1] - w[0]
+    f = beta_ex * dt_dw
+    tau_to = np.concatenate([np.zeros_like(f[..., :1, :]),
+                             np.cumsum(0.5 * (f[..., 1:, :] + f[..., :-1, :]) * dw, axis=-2)], axis=-2)
+    view_t = np.exp(-tau_to)
+    tau = np.sum(f * _simpson_weights(RAY_SAMPLES)[:, None], axis=-2)                 # (..., 3)
+    view_t = np.where(tau_to > 0.0, np.exp(-tau_to * (tau[..., None, :] / np.maximum(tau_to[..., -1:, :], 1e-300))),
+                      view_t)                                                         # rescaled to the Simpson total
+    mu_s = (r_c * sin_s + t * nu) / np.maximum(radius, 1.0)
+    sun_t = sun_table(radius, mu_s)                                                   # 0 in the planet's shadow
+    weights = (_simpson_weights(RAY_SAMPLES)[:, None] * dt_dw)
+    j_r = np.sum(weights * view_t * atm.rayleigh_scattering * n_r * sun_t, axis=-2)
+    j_m = np.sum(weights * view_t * atm.mie_scattering * n_m * sun_t, axis=-2)
+    start_r = atm.rayleigh_scattering * n_r[..., 0, :] * sun_t[..., 0, :]
+    if multiple_scattering:
+        view_z = (r_c * sin_e + t) / np.maximum(radius, 1.0)                           # local zenith cosine of the ray
+        view_x = (nu - mu_s * view_z) / np.sqrt(np.maximum(1.0 - mu_s * mu_s, 1e-12))   # ... toward the sun
+        s_r, s_m = ms_table.scattered(np.broadcast_to(h, mu_s.shape), mu_s, view_z, view_x)
+        source = atm.rayleigh_scattering * n_r * s_r + atm.mie_scattering * n_m * s_m
+        phase = phase_rayleigh(nu)
+        j_r = j_r + np.sum(weights * view_t * source, axis=-2) / phase
+        start_r = start_r + source[..., 0, :] / phase
+    start_m = atm.mie_scattering * n_m[..., 0, :] * sun_t[..., 0, :]
+    return tau, j_r, j_m, start_r, start_m, beta_ex[..., 0, :]
 
 
 def horizon_cosine(camera_altitude_m: float, atm: Atmosphere) -> float:

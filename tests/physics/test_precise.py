@@ -16,8 +16,8 @@ from atmos_addon.physics.precise import (ALTITUDE_MAX_STEP_M, ALTITUDE_SCALE_M, 
                                          SunTransmittanceTable, TableShape, atmosphere_tables, bake_tile,
                                          blend_tiles, distance_to_top, evaluate, horizon_cosine, key_tiles,
                                          lighting_from_tile, max_distance, mid_step_error, path_coordinates,
-                                         shared_max_distance, sky_view_cosines, sky_view_rows, sky_from_tile,
-                                         sky_path_length, sky_radiance, target_altitude)
+                                         ray_integrals, shared_max_distance, sky_view_cosines, sky_view_rows,
+                                         sky_from_tile, sky_path_length, sky_radiance, target_altitude)
 from atmos_addon.physics.sky import dome_distance_approx
 from atmos_addon.physics.sky import sky_radiance as dome_sky_radiance
 from atmos_addon.physics.sun import sun_irradiance_ground
@@ -182,6 +182,30 @@ def _stays_above_ground(altitude, views, distances, atm):
     end = np.sqrt(r_c ** 2 + 2 * r_c * distances * sin_e + distances ** 2)
     return np.minimum(lowest, end) >= atm.planet_radius
 
+
+@pytest.mark.parametrize("atm", [EARTH, MARS], ids=["earth", "mars"])
+def test_the_ray_integrals_split_at_a_point_down_the_ray(atm):
+    """J(x -> end) = J(x -> p) + T(x, p) J(p -> end) for the single and the multiple scattering, and the optical depths
+    add: the identity a table of whole rays relies on (tools/measure_sun_free_table.py's S(x) - T S(p)), and a check
+    that ``ray_integrals`` carries the geometry down the ray (the point's own view and sun zenith cosines, nu the
+    same)."""
+    tables = atmosphere_tables(atm)
+    r_c, e_s = atm.planet_radius + 50.0, math.radians(8.0)
+    elevation, azimuth = np.radians([3.0, 20.0, 60.0, -1.0]), np.radians([30.0, 150.0, 90.0, 0.0])
+    views = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], -1)
+    nu = views @ np.array([math.cos(e_s), 0.0, math.sin(e_s)])
+    mu, whole_m, split_m = views[:, 2], np.array([40e3, 40e3, 40e3, 3e3]), np.array([12e3, 5e3, 30e3, 1e3])
+    whole = ray_integrals(atm, tables, r_c, mu, math.sin(e_s), nu, whole_m)
+    first = ray_integrals(atm, tables, r_c, mu, math.sin(e_s), nu, split_m)
+    r_p = np.sqrt(split_m ** 2 + 2.0 * r_c * mu * split_m + r_c ** 2)
+    rest = ray_integrals(atm, tables, r_p, (r_c * mu + split_m) / r_p, (r_c * math.sin(e_s) + split_m * nu) / r_p, nu,
+                         whole_m - split_m)
+    np.testing.assert_allclose(whole[0], first[0] + rest[0], rtol=1e-4)
+    transmittance = np.exp(-first[0])
+    for quantity in (1, 2):   # J_R (multiple scattering included), J_M
+        np.testing.assert_allclose(whole[quantity], first[quantity] + transmittance * rest[quantity], rtol=2e-3)
+    # the start's scattering and extinction are those of the tile's first sample (the d -> 0 limit)
+    assert np.all(whole[3] > 0.0) and np.all(whole[5] >= whole[3])
 
 @pytest.mark.parametrize("case", [(2.0, 40.0), (2000.0, 10.0), (10_000.0, 1.0), (60_000.0, 30.0)])
 def test_tile_matches_brute_force_single_scattering(case):
