@@ -51,7 +51,7 @@ def test_a_coarse_run_measures_both_tables(monkeypatch):
     table = study.build_table(atm, tables)
     assert table[0].shape == (4, 16, 4, 2, 3) and np.all(np.isfinite(table[0])) and np.all(table[0] >= 0.0)
     run = study.compare(atm, tables, table, 100.0, 5.0)
-    for key in ("tile", "table_4d", "tile_vs_haze", "table_4d_vs_haze"):
+    for key in ("tile", "table_4d", "tile_vs_haze", "table_4d_vs_haze", "tile_ms_block_vs_haze"):
         assert np.all(np.isfinite(run[key])), key
-    assert np.max(run["tile_vs_haze"]) < 0.05
+    assert np.max(run["tile_vs_haze"]) < 0.05 and np.max(run["tile_ms_block_vs_haze"]) < 0.05
     assert np.percentile(run["table_4d_vs_haze"], 99) > 3.0 * np.percentile(run["tile_vs_haze"], 99)

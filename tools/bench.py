@@ -394,9 +394,10 @@ NOTES = """## What the numbers say
   is not met, as the tile is camera-centred and baked per sun elevation; the table that depends on neither,
   Bruneton's 4-D one (Hillaire's sky-view and aerial-perspective tables are per frame like the tile), was built and
   measured against the tile (`tools/measure_sun_free_table.py`, docs/quality.md): 33-40 s to bake per atmosphere
-  on 2 cores, 33.6 MB in every file, and on Earth further from the exact integrals (beyond 30 km 21 % of the
-  horizon sky at the 99th percentile against the tile's 3.7 %), so it is not adopted; an atmosphere edit re-bakes
-  in 1.80 s in the background (target 1 s: not met; the tables alone 1.36-1.38 s on 2 cores), its first look in
+  on 2 cores, 33.6 MB in every file, and further from the exact integrals (on Earth beyond 30 km 21 % of the
+  horizon sky at the 99th percentile against the tile's 3.6 %), so it is not adopted (what it showed of the tile's
+  steep rays made each table row's columns start at its vertical ray: Mars 14-17 % -> 2.5-9.0 %); an atmosphere
+  edit re-bakes in 1.80 s in the background (target 1 s: not met; the tables alone 1.36-1.38 s on 2 cores), its first look in
   the interface in 0.75 s (met); enable on 5000 materials / 20000 objects 1.31-1.49 s (target 1 s: not met;
   below, per edit); the sync (an older issue's 5 ms) 4.71-5.40 ms on 5.2.3 and 5.3.0, 6.80-8.83 ms on 4.5.15.
 - **Render**: the default costs 1.11x Blender's sky in Cycles in this run (stop 54, nothing that renders changed;

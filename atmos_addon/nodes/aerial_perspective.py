@@ -163,8 +163,8 @@ def describe_features(features: AerialFeatures) -> str:
 
 #: Nodes in the group per feature key for this version (:data:`.stamps.AERIAL`; group output included).
 NODE_COUNTS = {"rayleigh": 47, "rayleigh+abs": 73, "rayleigh+mie": 99, "rayleigh+mie+abs": 101,
-               "rayleigh+precise": 174, "rayleigh+abs+precise": 174,
-               "rayleigh+mie+precise": 241, "rayleigh+mie+abs+precise": 241,
+               "rayleigh+precise": 188, "rayleigh+abs+precise": 188,
+               "rayleigh+mie+precise": 255, "rayleigh+mie+abs+precise": 255,
                # key tiles blended (an animated camera or sun): a second texel and a blend per lookup
-               "rayleigh+precise+blend": 228, "rayleigh+abs+precise+blend": 228, "rayleigh+mie+precise+blend": 327,
-               "rayleigh+mie+abs+precise+blend": 327}
+               "rayleigh+precise+blend": 242, "rayleigh+abs+precise+blend": 242, "rayleigh+mie+precise+blend": 341,
+               "rayleigh+mie+abs+precise+blend": 341}

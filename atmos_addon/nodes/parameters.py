@@ -54,7 +54,8 @@ PRECISE_TILE = "atmos_precise_tile"
 #: Precise level, per frame: the table's largest distance D, its top altitude and the weight of the next key tile
 #: (an animated camera or sun), (D m, top m, w).
 PRECISE_SCALE = "atmos_precise_scale"
-#: Precise level: the table image's size, (width px, height px, 0).
+#: Precise level: the table image's size and whether its distance columns start at each row's vertical ray
+#: (``physics.precise.Tile.vertical_columns``), (width px, height px, 1 or 0).
 PRECISE_ATLAS = "atmos_precise_atlas"
 
 #: The parameters of the aerial-perspective group.

@@ -8,7 +8,8 @@ distance (m), v the unit view direction, l the unit direction to the sun:
     r_c    = R + h_c,  rise = (2 r_c v_z + s) s,  h_p = h_c + rise / (sqrt(r_c^2 + rise) + r_c)   target altitude
     row    = (clamp(h_p / top, 0, 1))^(1/3) (N_h - 1)
     a      = atan2(|v_x l_y - v_y l_x|, v_x l_x + v_y l_y) (N_a - 1) / pi,  a0 = min(floor(a), N_a - 2)
-    col    = min(sqrt(s / D), 1) (N_d - 1)
+    u      = row / (N_h - 1),  d_min = |top u^3 - h_c| v,  p = v (1 - u) + 2     v = 1, or 0 for a camera whose
+    col    = min(((max(s - d_min, 0) / max(D - d_min, 1))^(1/p), 1) (N_d - 1)     altitude moves (its key tiles)
     tau    = s * image(x0 + 0.5 + col, y0 + 0.5 + row)                         the extinction block
     A_i    = lerp(image(x_i + a0 N_d + ...), image(x_i + (a0 + 1) N_d + ...), a - a0)   A_R and A_M blocks
     F_ex   = exp(-tau),  L_in = [Phi_R(nu) A_R + Phi_HG(nu, g) A_M] tau phi1(tau),  nu = v . l
@@ -18,11 +19,11 @@ unfiltered (texel centres at +0.5), the same arithmetic in both engines. :func:`
 block (the Precise sky by view direction) with Cycles' filtered lookup, for the world's non-camera rays.
 Per-frame values are scene parameters (:mod:`.parameters`): the tile's texel origin and the camera altitude
 (``atmos_precise_tile`` = (x0, y0, h_c)), the frame's largest distance and the table's top
-(``atmos_precise_scale`` = (D, top, w)) and the image size (``atmos_precise_atlas``). When the camera or the sun
-moves over time the image holds key tiles along the path (``physics.precise.key_tiles``) and the graph is built to
-blend each texel of the frame's key tile with the next key's, one tile height up, by the weight w (:class:`KeyBlend`);
-the add-on keys the parameters per frame (constant interpolation), so a farm renders every frame from the packed
-image without Python.
+(``atmos_precise_scale`` = (D, top, w)) and the image size with v (``atmos_precise_atlas`` = (W, H, v)). When the
+camera or the sun moves over time the image holds key tiles along the path (``physics.precise.key_tiles``) and the
+graph is built to blend each texel of the frame's key tile with the next key's, one tile height up, by the weight w
+(:class:`KeyBlend`); the add-on keys the parameters per frame (constant interpolation), so a farm renders every
+frame from the packed image without Python.
 """
 
 from __future__ import annotations
@@ -297,6 +298,28 @@ def tile_camera(g: GraphBuilder) -> tuple[Socket, Socket, Socket]:
     return h_c, top, g.attribute(parameters.PLANET_RADIUS, output="Fac")
 
 
+def table_column_graph(g: GraphBuilder, s: Socket, row: Socket, h_c: Socket, top: Socket, d_max: Socket,
+                       vertical: Socket) -> Socket:
+    """The distance column of a point s m along the view in table row ``row`` (module docstring;
+    ``physics.precise.table_coordinates``): the row's columns start at its vertical ray, d_min = |h_row - h_c| with
+    h_row = top (row / (N_h - 1))^3, where ``vertical`` is 1 (0: at the camera), spaced by the row's power p."""
+    u = g.div(row, float(ALTITUDES - 1), label="u = row / (N_h - 1)")
+    h_row = g.mul(g.mul(g.mul(u, u), u), top, label="h_row = top u^3")
+    d_min = g.mul(g.abs(g.sub(h_row, h_c)), vertical, label="d_min = |h_row - h_c|")
+    span = g.max(g.sub(d_max, d_min), 1.0, label="D - d_min")
+    power = g.multiply_add(vertical, g.sub(1.0, u), 2.0, label="p = 2 + vertical (1 - u)")
+    return g.mul(g.min(g.pow(g.div(g.max(g.sub(s, d_min), 0.0), span), g.div(1.0, power)), 1.0),
+                 float(DISTANCES - 1), label="col")
+
+
+TABLE_COLUMN = parts.define(
+    "Atmos Table Column", 1,
+    (("s", parts.FLOAT), ("row", parts.FLOAT), ("h_c", parts.FLOAT), ("top", parts.FLOAT), ("D", parts.FLOAT),
+     ("vertical", parts.FLOAT)),
+    (("col", parts.FLOAT),), table_column_graph,
+    description="The Precise table's distance column of a point s m along the view in a row")
+
+
 def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket, to_top: Socket | None = None,
                   whole_row: Socket | None = None) -> tuple[Socket, Socket]:
     """(F_ex, L_in) sampled from the frame's table (module docstring), s taken at most to the top of the
@@ -309,7 +332,8 @@ def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket, to_top: So
     sx, sy, _ = g.separate(sun, label="l")
     x0, y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile (x0, y0, h_c)")
     d_max, top, _ = g.separate(g.attribute(parameters.PRECISE_SCALE, output="Vector"), label="scale (D, top)")
-    width, height, _ = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"), label="atlas (W, H)")
+    width, height, vertical = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"),
+                                         label="atlas (W, H, vertical columns)")
     radius = g.attribute(parameters.PLANET_RADIUS, output="Fac")
     to_top = to_top if to_top is not None else distance_to_top(g, vz, h_c, top, radius)
     s = g.min(g.max(s, 0.0), to_top, label="s, at most to the top")
@@ -323,11 +347,11 @@ def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket, to_top: So
         row = g.mul(g.pow(fraction, 1.0 / 3.0), float(ALTITUDES - 1), label="row")
     else:
         row = whole_row
+    column = g.call(TABLE_COLUMN, s, row, h_c, top, d_max, vertical, label="col")
 
     azimuth = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (AZIMUTHS - 1) / math.pi, label="a")
     a0 = g.min(g.floor(azimuth), float(AZIMUTHS - 2), label="a0")
     fa = g.sub(azimuth, a0, label="a - a0")
-    column = g.mul(g.min(g.sqrt(g.div(s, d_max)), 1.0), float(DISTANCES - 1), label="col")
     bilinear = _Bilinear(g, x0, y0, column, row, width, height, whole_row=whole_row is not None,
                          blend=KeyBlend(g, height) if features.blend else None)
     slice_offset = g.mul(a0, float(DISTANCES), label="a0 N_d")

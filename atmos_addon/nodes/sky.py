@@ -282,11 +282,11 @@ def ensure_sky_group(features: SkyFeatures = SkyFeatures()) -> bpy.types.ShaderN
 SKY_NODE_COUNTS = {"rayleigh": 75, "rayleigh+ground": 86, "rayleigh+abs": 100, "rayleigh+abs+ground": 111,
                    "rayleigh+mie": 126, "rayleigh+mie+ground": 137, "rayleigh+mie+abs": 128,
                    "rayleigh+mie+abs+ground": 139,
-                   "rayleigh+precise": 187, "rayleigh+precise+ground": 197, "rayleigh+abs+precise": 187,
-                   "rayleigh+abs+precise+ground": 197, "rayleigh+mie+precise": 234,
-                   "rayleigh+mie+precise+ground": 244, "rayleigh+mie+abs+precise": 234,
-                   "rayleigh+mie+abs+precise+ground": 244,
+                   "rayleigh+precise": 201, "rayleigh+precise+ground": 211, "rayleigh+abs+precise": 201,
+                   "rayleigh+abs+precise+ground": 211, "rayleigh+mie+precise": 248,
+                   "rayleigh+mie+precise+ground": 258, "rayleigh+mie+abs+precise": 248,
+                   "rayleigh+mie+abs+precise+ground": 258,
                    **{f"{terms}+precise+blend{ground}": count
-                      for terms, counts in (("rayleigh", (216, 226)), ("rayleigh+abs", (216, 226)),
-                                            ("rayleigh+mie", (279, 289)), ("rayleigh+mie+abs", (279, 289)))
+                      for terms, counts in (("rayleigh", (230, 240)), ("rayleigh+abs", (230, 240)),
+                                            ("rayleigh+mie", (293, 303)), ("rayleigh+mie+abs", (293, 303)))
                       for ground, count in zip(("", "+ground"), counts)}}

@@ -38,8 +38,17 @@ Table axes (:class:`TableShape`)
       (:func:`row_altitudes`; dense near the ground, where the haze and most surfaces are); the ray's elevation
       follows from the triangle (r_c, r_p, d) (:func:`bake_tile`), so a row holds every ray ending at that altitude;
     * azimuth slices, a = pi j / (N_a - 1) from the sun's azimuth, interpolated linearly (the shader's manual blend);
-    * distance columns, d_k = D (k / (N_d - 1))^2 with D the longest ray that stays above the ground inside
-      the atmosphere (:func:`max_distance`), d beyond D clamped.
+    * distance columns, each row's own (:func:`cell_distances`): d_k = d_min + (D - d_min) (k / (N_d - 1))^p from
+      the shortest ray that reaches the row, d_min = |h_p - h_c| (the vertical one), to D, the longest ray that
+      stays above the ground inside the atmosphere (:func:`max_distance`), d beyond D clamped; the power p
+      (:func:`column_power`) goes from 3 at the ground's row (columns crowded near the camera: 35 m, 280 m,
+      940 m... at D = 1000 km) to 2 at the top's (the sky's long rays near the horizon). So every cell is a ray that
+      ends at its row's altitude, and the cells next to a steep ray are steep rays too. Until December 2026 the
+      columns were D (k / (N_d - 1))^2 for every row: a steep ray's neighbours were a vertical ray cut short and rays
+      of far lower elevation, whose multiply scattered light differs (rays to points kilometres up on Mars 14-17 %
+      of the horizon sky off at the 99th percentile, now 2.4-9.0 %: ``tools/measure_sun_free_table.py``,
+      docs/quality.md). The key tiles of a camera whose altitude moves keep those columns
+      (:attr:`Tile.vertical_columns` False): two keys' texels then map rays of one length.
 Within one azimuth slice the shader blends (row, column) bilinearly from four unfiltered texels.
 
 The sky view (:func:`sky_view`, the tile's last columns): the Precise sky by view direction (zenith rows crowded at
@@ -144,9 +153,23 @@ def row_altitudes(shape: TableShape, atm: Atmosphere) -> np.ndarray:
     return atm.atmosphere_height * np.linspace(0.0, 1.0, shape.altitudes) ** 3
 
 
-def distance_columns(shape: TableShape, d_max_m: float) -> np.ndarray:
-    """Distance of each table column, m: D (k / (N_d - 1))^2."""
-    return d_max_m * np.linspace(0.0, 1.0, shape.distances) ** 2
+def column_power(row: ArrayLike, shape: TableShape, vertical: ArrayLike = 1.0) -> np.ndarray:
+    """The power p of the distance columns at (fractional) ``row``: 2 + vertical (1 - row / (N_h - 1)), so 3 at the
+    ground's row (the columns crowd near the camera: 35 m, 280 m, 940 m... at D = 1000 km, for the aerial
+    perspective of near surfaces) down to 2 at the top's (the sky's long rays near the horizon keep their columns);
+    2 everywhere where the columns do not start at the vertical ray (:attr:`Tile.vertical_columns`)."""
+    return 2.0 + np.asarray(vertical) * (1.0 - np.asarray(row) / (shape.altitudes - 1))
+
+
+def cell_distances(shape: TableShape, d_max_m: float, rise_m: ArrayLike, vertical: bool = True) -> np.ndarray:
+    """Distance of each cell of the rows (all the table's, in order) whose targets are ``rise_m`` above the camera
+    (r_p - r_c, m, shape (N_h,)), m, shape (N_h, N_d): d_min + (D - d_min) (k / (N_d - 1))^p with d_min = |rise| and
+    p the row's :func:`column_power` (module docstring); with ``vertical`` False (:attr:`Tile.vertical_columns`)
+    D (k / (N_d - 1))^2 for every row."""
+    rise = np.asarray(rise_m, dtype=np.float64)
+    power = column_power(np.arange(shape.altitudes), shape, float(vertical))[:, None]
+    d_min = np.abs(rise)[:, None] * float(vertical)
+    return d_min + (d_max_m - d_min) * np.linspace(0.0, 1.0, shape.distances) ** power
 
 
 def target_altitude(camera_radius_m, cos_zenith, distance_m, planet_radius_m, dtype: DTypeLike = np.float64):
@@ -1089,6 +1112,10 @@ class Tile:
     #: (altitudes rows, sky azimuths, 3); None until :func:`integrate_tile` adds them.
     camera_sky_rayleigh: np.ndarray | None = None
     camera_sky_mie: np.ndarray | None = None
+    #: Each row's distance columns start at its vertical ray (:func:`cell_distances`); False for the key tiles of a
+    #: camera whose altitude moves, whose columns all start at the camera (d_min = 0): two keys' texels then map rays
+    #: of one length, which is what blending them needs. The shader reads it from ``atmos_precise_atlas``'s z.
+    vertical_columns: bool = True
 
     def pixels(self) -> np.ndarray:
         """The tile as image pixels (altitudes, width, 3): row = altitude, columns = the extinction block
@@ -1122,25 +1149,27 @@ TILE_CACHE_SIZE = 16
 
 def bake_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, *,
               multiple_scattering: bool = True, ground_albedo=DEFAULT_GROUND_ALBEDO,
-              shape: TableShape = DEFAULT_SHAPE, max_distance_m: float | None = None, preview: bool = False) -> Tile:
+              shape: TableShape = DEFAULT_SHAPE, max_distance_m: float | None = None, preview: bool = False,
+              vertical_columns: bool = True) -> Tile:
     """One frame's table (module docstring) for a camera at ``camera_altitude_m`` (m above sea level, clamped at 0)
     and the sun at ``sun_elevation_rad``; ``multiple_scattering=False`` leaves J_ms out; ``max_distance_m``: the
     last column's distance D (default :func:`max_distance` of the camera; the key tiles of an animation share the
     largest, :func:`blend_tiles`). The last :data:`TILE_CACHE_SIZE` tiles are kept: the same inputs return the same
     :class:`Tile`, its arrays read-only (:func:`integrate_tile` integrates afresh). ``preview``: from the preview
-    tables (:data:`PREVIEW_RESOLUTION`)."""
+    tables (:data:`PREVIEW_RESOLUTION`); ``vertical_columns``: :attr:`Tile.vertical_columns`."""
     return _cached_tile(atm, float(camera_altitude_m), float(sun_elevation_rad), bool(multiple_scattering),
                         tuple(float(a) for a in ground_albedo), shape,
-                        None if max_distance_m is None else float(max_distance_m), bool(preview))
+                        None if max_distance_m is None else float(max_distance_m), bool(preview),
+                        bool(vertical_columns))
 
 
 @functools.lru_cache(maxsize=TILE_CACHE_SIZE)
 def _cached_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, multiple_scattering: bool,
                  ground_albedo: tuple[float, float, float], shape: TableShape, max_distance_m: float | None,
-                 preview: bool) -> Tile:
+                 preview: bool, vertical_columns: bool) -> Tile:
     return _frozen(integrate_tile(atm, camera_altitude_m, sun_elevation_rad, multiple_scattering=multiple_scattering,
                                   ground_albedo=ground_albedo, shape=shape, max_distance_m=max_distance_m,
-                                  preview=preview))
+                                  preview=preview, vertical_columns=vertical_columns))
 
 
 def _frozen(tile: Tile) -> Tile:
@@ -1158,7 +1187,8 @@ class TileCancelled(Exception):
 def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, *,
                    multiple_scattering: bool = True, ground_albedo=DEFAULT_GROUND_ALBEDO,
                    shape: TableShape = DEFAULT_SHAPE, max_distance_m: float | None = None,
-                   preview: bool = False, tables: tuple | None = None, stop: threading.Event | None = None) -> Tile:
+                   preview: bool = False, tables: tuple | None = None, stop: threading.Event | None = None,
+                   vertical_columns: bool = True) -> Tile:
     """Integrate one frame's table (module docstring), uncached (:func:`bake_tile` keeps the last ones); ``preview``
     reads the preview tables (:func:`atmosphere_tables`); ``tables``: the (sun transmittance, multiple-scattering)
     tables to read instead (the tools that measure variants of them); ``stop``: once set, the integration ends at
@@ -1181,6 +1211,7 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
         raise ValueError(f"max_distance_m must be > 0; got {max_distance_m!r}")
     r_c = atm.planet_radius + h_c
     all_rows = (atm.planet_radius + row_altitudes(shape, atm))[:, None, None, None]   # (H, 1, 1, 1)
+    distances = cell_distances(shape, d_max, all_rows[:, 0, 0, 0] - r_c, vertical_columns)   # (H, D)
     mean_extinction = np.zeros((shape.altitudes, shape.distances, 3))
     a_r = np.zeros((shape.altitudes, shape.azimuths, shape.distances, 3))
     a_m = np.zeros_like(a_r)
@@ -1190,7 +1221,7 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
             raise TileCancelled
         rows = blocks[block]
         r_p = all_rows[rows]
-        d = distance_columns(shape, d_max)[None, None, :, None]                       # (1, 1, D, 1)
+        d = distances[rows][:, None, :, None]                                         # (H, 1, D, 1)
         with np.errstate(divide="ignore", invalid="ignore"):
             sin_e = np.where(d > 0.0, (r_p * r_p - r_c * r_c - d * d) / (2.0 * r_c * d), 0.0)
         sin_e = np.clip(sin_e, -1.0, 1.0)
@@ -1216,7 +1247,7 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     full = (shape.altitudes, shape.azimuths, shape.distances, 3)
     tile = Tile(shape, r_c, d_max, np.ascontiguousarray(np.broadcast_to(mean_extinction, full[:1] + full[2:])),
                 np.ascontiguousarray(np.broadcast_to(a_r * e_top, full)),
-                np.ascontiguousarray(np.broadcast_to(a_m * e_top, full)))
+                np.ascontiguousarray(np.broadcast_to(a_m * e_top, full)), vertical_columns=bool(vertical_columns))
     radiance, ground_transmittance = sky_view(tile, sun_elevation_rad, atm)
     rayleigh, mie = camera_sky_view(tile, sun_elevation_rad, atm)
     return dataclasses.replace(tile, sky_radiance=radiance, sky_ground_transmittance=ground_transmittance,
@@ -1574,20 +1605,36 @@ def sky_from_tile(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmo
 
 
 def table_coordinates(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, distance_m: ArrayLike, atm: Atmosphere,
-                      dtype: DTypeLike = np.float32):
+                      dtype: DTypeLike = np.float32, row: ArrayLike | None = None):
     """(row, azimuth index, distance column) in texels, as the shader computes them from the unit view direction,
-    the unit direction to the sun and the distance (m)."""
+    the unit direction to the sun and the distance (m); ``row``: a whole row the caller knows instead (the top's or
+    the ground's: the sky).
+
+        row = clamp(h_p / top, 0, 1)^(1/3) (N_h - 1),   u = row / (N_h - 1),   d_min = |top u^3 - h_c| v,
+        p = v (1 - u) + 2,   col = min(((max(s - d_min, 0) / max(D - d_min, 1))^(1/p), 1) (N_d - 1)
+
+    with v = :attr:`Tile.vertical_columns` (1 or 0) and p the row's :func:`column_power`: the row's altitude sets
+    d_min, so the sky's whole rows and a surface beyond the top (whose row rounds to the top's) read the same
+    texels."""
     dt = np.dtype(dtype).type
     shape = tile.shape
     v = np.asarray(view_dir, dtype=dt)
     s = np.asarray(sun_dir, dtype=dt)
     d = np.maximum(np.asarray(distance_m, dtype=dt), dt(0))
-    altitude = target_altitude(tile.camera_radius_m, v[..., 2], d, atm.planet_radius, dtype)
-    fraction = np.clip(altitude / dt(atm.atmosphere_height), dt(0), dt(1))
-    row = np.power(fraction, dt(1.0 / 3.0)) * dt(shape.altitudes - 1)
-    azimuth = _azimuth_column(v, s, shape.azimuths, dt)
-    column = np.minimum(np.sqrt(d / dt(tile.max_distance_m)), dt(1)) * dt(shape.distances - 1)
-    return row.astype(dt), azimuth.astype(dt), column.astype(dt)
+    if row is None:
+        altitude = target_altitude(tile.camera_radius_m, v[..., 2], d, atm.planet_radius, dtype)
+        fraction = np.clip(altitude / dt(atm.atmosphere_height), dt(0), dt(1))
+        row = np.power(fraction, dt(1.0 / 3.0)) * dt(shape.altitudes - 1)
+    else:
+        row = np.broadcast_to(np.asarray(row, dtype=dt), d.shape)
+    u = row / dt(shape.altitudes - 1)
+    vertical = dt(tile.vertical_columns)
+    h_row = u * u * u * dt(atm.atmosphere_height)                                     # the row's altitude
+    d_min = np.abs(h_row - dt(tile.camera_radius_m - atm.planet_radius)) * vertical
+    span = np.maximum(dt(tile.max_distance_m) - d_min, dt(1))
+    power = vertical * (dt(1) - u) + dt(2)                                            # column_power
+    column = np.minimum(np.power(np.maximum(d - d_min, dt(0)) / span, dt(1) / power), dt(1)) * dt(shape.distances - 1)
+    return row.astype(dt), _azimuth_column(v, s, shape.azimuths, dt).astype(dt), column.astype(dt)
 
 
 def sample(quantity: np.ndarray, row: np.ndarray, azimuth: np.ndarray, column: np.ndarray,
@@ -1626,8 +1673,7 @@ def _phase_free_terms(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, dista
     views = np.asarray(view_dir, dtype=dt)
     to_top = distance_to_top(views[..., 2], float(tile.camera_radius_m - atm.planet_radius), atm, dt)
     d = np.minimum(np.maximum(np.asarray(distance_m, dtype=dt), dt(0)), to_top)
-    target_row, azimuth, column = table_coordinates(tile, views, sun_dir, d, atm, dtype)
-    row = target_row if row is None else np.broadcast_to(np.asarray(row, dtype=dt), target_row.shape)
+    row, azimuth, column = table_coordinates(tile, views, sun_dir, d, atm, dtype, row)
     extinction_per_m = _bilinear(np.asarray(tile.mean_extinction, dtype=dt), row, column)
     a_r = sample(tile.a_rayleigh, row, azimuth, column, dtype)
     a_m = sample(tile.a_mie, row, azimuth, column, dtype)
@@ -1762,8 +1808,9 @@ def blend_tiles(first: Tile, second: Tile, weight: float, camera_altitude_m: flo
     """The tile a frame samples between two key tiles: every texel first + w (second - first) (what the shader's
     blended lookups give: they are linear in the texels), mapped from the frame's own camera altitude. The two
     must share their shape and distance D (:func:`shared_max_distance`)."""
-    if first.shape != second.shape or first.max_distance_m != second.max_distance_m:
-        raise ValueError("blend_tiles needs two tiles of one shape and one largest distance D")
+    if (first.shape != second.shape or first.max_distance_m != second.max_distance_m
+            or first.vertical_columns != second.vertical_columns):
+        raise ValueError("blend_tiles needs two tiles of one shape, one largest distance D and one column layout")
     w = float(weight)
 
     def lerp(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -1774,7 +1821,7 @@ def blend_tiles(first: Tile, second: Tile, weight: float, camera_altitude_m: flo
                 lerp(first.a_mie, second.a_mie), lerp(first.sky_radiance, second.sky_radiance),
                 lerp(first.sky_ground_transmittance, second.sky_ground_transmittance),
                 lerp(first.camera_sky_rayleigh, second.camera_sky_rayleigh),
-                lerp(first.camera_sky_mie, second.camera_sky_mie))
+                lerp(first.camera_sky_mie, second.camera_sky_mie), first.vertical_columns)
 
 
 # -- A still scene's sun moved: key tiles of its camera's altitude on the sun's key grid ----------------------------
@@ -1916,7 +1963,8 @@ def mid_step_error(atm: Atmosphere, first: tuple[float, float], second: tuple[fl
     middle = (0.5 * (first[0] + second[0]), 0.5 * (first[1] + second[1]))
 
     def tile(inputs: tuple[float, float]) -> Tile:
-        return bake_tile(atm, inputs[0], inputs[1], multiple_scattering=multiple_scattering, max_distance_m=d_max)
+        return bake_tile(atm, inputs[0], inputs[1], multiple_scattering=multiple_scattering, max_distance_m=d_max,
+                         vertical_columns=first[0] == second[0])
 
     exact = tile(middle)
     blended = blend_tiles(tile(first), tile(second), 0.5, middle[0], atm)

@@ -111,7 +111,8 @@ def test_the_precise_group_samples_the_table_as_the_core_does(addon):
         table = values(atm, sun, e_sun)
         table.update({parameters.PRECISE_TILE: (0.0, 0.0, camera_altitude),
                       parameters.PRECISE_SCALE: (tile.max_distance_m, atm.atmosphere_height, 0.0),
-                      parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+                      parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 1.0)})
+        assert tile.vertical_columns   # a still camera's tile: each row's columns from its vertical ray
         for features in (AerialFeatures(level="precise"), AerialFeatures(mie=False, level="precise")):
             f_ex, l_in = aerial_perspective.evaluate(
                 features, table, distance_units=distances, view_direction=directions,
@@ -125,22 +126,27 @@ def test_the_precise_group_samples_the_table_as_the_core_does(addon):
     assert bpy.data.images.get(IMAGE_NAME) is not None
 
 
-def test_the_blending_precise_group_samples_two_key_tiles_as_the_core_blends_them(addon):
+@pytest.mark.parametrize("keys", [((2.0, 8.0), (150.0, 6.0), (400.0, 5.0)), ((30.0, 8.0), (30.0, 6.0), (30.0, 5.0))],
+                         ids=["camera and sun", "sun alone"])
+def test_the_blending_precise_group_samples_two_key_tiles_as_the_core_blends_them(addon, keys):
     """An animated camera or sun: the graph built with ``blend`` reads the frame's key tile and the next one, a tile
     height up in the image, and blends every texel by the weight in ``atmos_precise_scale``; that is sampling
-    ``physics.precise.blend_tiles`` (the camera's own altitude mapping the rows)."""
+    ``physics.precise.blend_tiles`` (the camera's own altitude mapping the rows). A camera whose altitude moves has
+    key tiles whose columns all start at the camera (``atmos_precise_atlas``'s z 0); under a sun alone they start at
+    each row's vertical ray (z 1), as a still scene's."""
     from atmos_addon.blender.apply import precise_tables
     from atmos_addon.physics.precise import bake_tile, blend_tiles, evaluate, shared_max_distance
 
     atm = ATMOSPHERES["clear"]
     directions, distances = rays(3000, seed=7)
-    keys = ((2.0, 8.0), (150.0, 6.0), (400.0, 5.0))
     d_max = shared_max_distance([h for h, _ in keys], atm)
-    tiles = [bake_tile(atm, h, math.radians(e), max_distance_m=d_max) for h, e in keys]
+    vertical = len({h for h, _ in keys}) == 1
+    tiles = [bake_tile(atm, h, math.radians(e), max_distance_m=d_max, vertical_columns=vertical) for h, e in keys]
     image = precise_tables.write_tiles(tiles)
     pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
     image.pixels.foreach_get(pixels)
-    for segment, weight, altitude in ((0, 0.3, 46.0), (1, 0.75, 330.0), (1, 1.0, 400.0)):
+    for segment, weight, fraction in ((0, 0.3, 0.3), (1, 0.75, 0.75), (1, 1.0, 1.0)):
+        altitude = keys[segment][0] + fraction * (keys[segment + 1][0] - keys[segment][0])
         elevation = math.radians(keys[segment][1] + weight * (keys[segment + 1][1] - keys[segment][1]))
         sun = np.array([0.0, math.cos(elevation), math.sin(elevation)])
         e_sun = sun_irradiance_ground(elevation, atm)
@@ -148,7 +154,7 @@ def test_the_blending_precise_group_samples_two_key_tiles_as_the_core_blends_the
         table = values(atm, sun, e_sun)
         table.update({parameters.PRECISE_TILE: (float(origin[0]), float(origin[1]), altitude),
                       parameters.PRECISE_SCALE: (d_max, atm.atmosphere_height, weight),
-                      parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+                      parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), float(vertical))})
         f_ex, l_in = aerial_perspective.evaluate(
             AerialFeatures(level="precise", blend=True), table, distance_units=distances, view_direction=directions,
             images={IMAGE_NAME: pixels.reshape(image.size[1], image.size[0], 4)})

@@ -32,6 +32,16 @@ DATA = Path(__file__).resolve().parent / "data"
 RELEASES = {"addba16": ("Compositor", "Per Pixel"), "7df8acd": ("Compositor", "Per Pixel", "Precise")}
 
 
+def _former_columns(bake_tile):
+    """``bake_tile`` with the Precise table's distance columns as before December 2026 (stop 55): D (k / (N_d - 1))^2
+    for every row (``physics.precise.Tile.vertical_columns`` False; the shader reads that from the atlas parameter).
+    Today's columns start at each row's vertical ray, which moves the stored 7df8acd file's renders by 2.1e-4 (its
+    Compositor scene): the migration test renders with the former ones, so that it checks what the upgrade keeps."""
+    def baked(*args, **options):
+        return bake_tile(*args, **{**options, "vertical_columns": False})
+    return baked
+
+
 #: Ozone's cross-section per channel before the spectral channels (December 2026), m^2: the channel means with the
 #: negative lobes cut. Today's (physics.spectrum.OZONE_CHANNEL_CROSS_SECTION_M2) keep them: red 23 % more, blue none,
 #: which moves a scene with ozone by up to 1.2 % (the stored 7df8acd scenes carry 300 DU). The migration test renders
@@ -47,6 +57,8 @@ def test_a_file_of_an_earlier_release_upgrades_in_place_and_renders_the_same(rel
     from atmos_addon.physics import atmosphere
 
     monkeypatch.setattr(atmosphere, "OZONE_CHANNEL_CROSS_SECTION_M2", FORMER_OZONE_CHANNEL_CROSS_SECTION_M2)
+    from atmos_addon.blender.apply import precise_tables
+    monkeypatch.setattr(precise_tables, "bake_tile", _former_columns(precise_tables.bake_tile))
     source = tmp_path / f"atmos_{release}.blend"
     shutil.copy(DATA / source.name, source)   # opened from a copy: the test never rewrites the stored file
     bpy.ops.wm.open_mainfile(filepath=str(source))

@@ -222,10 +222,11 @@ def _write_precise_sky(scene, sun: np.ndarray, altitude_m: float):
     return e_sun, tile
 
 
-def _table_graph_inputs(image, sun: np.ndarray, e_sun, altitude_m: float, scale=None) -> tuple[dict, dict]:
+def _table_graph_inputs(image, sun: np.ndarray, e_sun, altitude_m: float, scale=None,
+                        vertical: bool = True) -> tuple[dict, dict]:
     """What a numpy graph of the Precise world groups reads: the shader parameters as the add-on writes them for
-    ``sun``, E_sun and the tile's camera altitude (``scale``: the Precise scale (D, top, w) of a key-tile blend), and
-    the table image's pixels by name."""
+    ``sun``, E_sun and the tile's camera altitude (``scale``: the Precise scale (D, top, w) of a key-tile blend;
+    ``vertical``: the tiles' ``vertical_columns``), and the table image's pixels by name."""
     from atmos_addon.nodes import parameters
 
     values = parameters.shader_parameter_values(
@@ -233,7 +234,7 @@ def _table_graph_inputs(image, sun: np.ndarray, e_sun, altitude_m: float, scale=
         beta_mie_absorption=ATMOSPHERE.mie_absorption, mie_g=ATMOSPHERE.mie_g, sun_direction=sun,
         sun_irradiance=e_sun, metres_per_unit=1.0, ground_albedo=ALBEDO, planet_radius=ATMOSPHERE.planet_radius)
     values.update({parameters.PRECISE_TILE: (0.0, 0.0, altitude_m),
-                   parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), 0.0)})
+                   parameters.PRECISE_ATLAS: (float(image.size[0]), float(image.size[1]), float(vertical))})
     if scale is not None:
         values[parameters.PRECISE_SCALE] = scale
     pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
@@ -272,14 +273,16 @@ def test_the_blending_precise_lighting_group_samples_two_key_tiles_as_the_core_b
     assert len(group.nodes) == sky_lighting.SKY_LIGHTING_NODE_COUNTS[features.key]
     assert sum(n.bl_idname == "ShaderNodeTexImage" for n in group.nodes) == 4
     d_max = shared_max_distance([2.0, 300.0], ATMOSPHERE)
-    keys = [bake_tile(ATMOSPHERE, h, math.radians(e), max_distance_m=d_max) for h, e in ((2.0, 6.0), (300.0, 5.0))]
+    keys = [bake_tile(ATMOSPHERE, h, math.radians(e), max_distance_m=d_max, vertical_columns=False)   # the camera moves
+            for h, e in ((2.0, 6.0), (300.0, 5.0))]
     image = precise_tables.write_tiles(keys)
     directions = np.random.default_rng(4).normal(size=(2000, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     weight, altitude = 0.4, 120.0
     sun = _sun(5.6, 70.0)
     e_sun = ATMOSPHERE.sun_irradiance_top * 0.5
-    values, images = _table_graph_inputs(image, sun, e_sun, altitude, (d_max, ATMOSPHERE.atmosphere_height, weight))
+    values, images = _table_graph_inputs(image, sun, e_sun, altitude, (d_max, ATMOSPHERE.atmosphere_height, weight),
+                                         vertical=False)
     graph = sky_lighting.evaluate_precise(features, values, view_direction=directions, images=images)
     blended = blend_tiles(keys[0], keys[1], weight, altitude, ATMOSPHERE)
     expected = lighting_from_tile(blended, directions, sun, ATMOSPHERE, ALBEDO, e_sun)
@@ -594,14 +597,15 @@ def test_the_camera_sky_view_group_samples_the_core_s_camera_sky_view():
     assert blended_group == group.node_tree and sum(n.bl_idname == "ShaderNodeTexImage"
                                                     for n in blended_group.nodes) == 4
     d_max = shared_max_distance([2.0, 300.0], ATMOSPHERE)
-    keys = [bake_tile(ATMOSPHERE, h, math.radians(e), max_distance_m=d_max) for h, e in ((2.0, 6.0), (300.0, 5.0))]
+    keys = [bake_tile(ATMOSPHERE, h, math.radians(e), max_distance_m=d_max, vertical_columns=False)   # the camera moves
+            for h, e in ((2.0, 6.0), (300.0, 5.0))]
     image = precise_tables.write_tiles(keys)
     views = np.random.default_rng(4).normal(size=(2000, 3))
     views[:, 2] = np.abs(views[:, 2])
     views /= np.linalg.norm(views, axis=1, keepdims=True)
     weight, altitude, sun = 0.4, 120.0, _sun(5.6, 70.0)
     values, images = _table_graph_inputs(image, sun, ATMOSPHERE.sun_irradiance_top, altitude,
-                                         (d_max, ATMOSPHERE.atmosphere_height, weight))
+                                         (d_max, ATMOSPHERE.atmosphere_height, weight), vertical=False)
     graph, _ = sky_view.evaluate(blending, values, view_direction=views, images=images)
     blended = blend_tiles(keys[0], keys[1], weight, altitude, ATMOSPHERE)
     off_sun = np.degrees(np.arccos(np.clip(views @ sun, -1.0, 1.0))) > 1.5

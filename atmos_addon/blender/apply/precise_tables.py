@@ -44,8 +44,9 @@ _TILES = "atmos_tiles"
 #: camera's sky view after the sky view, 4: the multiple-scattering table's first order scattered once more by
 #: direction, stop 47, 5: its sun-cosine nodes even in elevation above 23 deg and one cell below -23 deg, stop 48,
 #: 6: their cells growing geometrically from the horizon within +-23 deg, stop 49, 7: the forward cut growing with
-#: the haze's g, stop 52), so a file saved before re-bakes on opening (:func:`follow`), its key tiles included.
-_LAYOUT = 7
+#: the haze's g, stop 52, 8: each row's distance columns from its vertical ray, stop 55), so a file saved
+#: before re-bakes on opening (:func:`follow`), its key tiles included.
+_LAYOUT = 8
 #: Image property: the :data:`_LAYOUT` its tiles were written with.
 _LAYOUT_KEY = "atmos_layout"
 
@@ -238,7 +239,7 @@ def _parameter_values(origin: tuple[int, int], camera_altitude_m: float, tile: T
     parameters = scene_reading.groups().parameters
     return {parameters.PRECISE_TILE: (float(origin[0]), float(origin[1]), max(float(camera_altitude_m), 0.0)),
             parameters.PRECISE_SCALE: (float(tile.max_distance_m), float(top_m), float(weight)),
-            parameters.PRECISE_ATLAS: (float(size[0]), float(size[1]), 0.0)}
+            parameters.PRECISE_ATLAS: (float(size[0]), float(size[1]), float(tile.vertical_columns))}
 
 
 def _key_parameters(scene, frames: list[tuple[int, dict]]) -> None:
@@ -325,8 +326,9 @@ def _integrate_preview(request: _Request) -> list[Tile]:
 
 
 def _tiles(request: _Request, *, preview: bool) -> list[Tile]:
+    vertical = len({altitude for altitude, _ in request.path.keys}) == 1   # Tile.vertical_columns
     return [bake_tile(request.atmosphere, altitude, elevation, max_distance_m=request.shared_distance_m,
-                      preview=preview, **request.options)
+                      preview=preview, vertical_columns=vertical, **request.options)
             for altitude, elevation in request.path.keys]
 
 
