@@ -46,9 +46,9 @@ Table axes (:class:`TableShape`)
       ends at its row's altitude, and the cells next to a steep ray are steep rays too. Until December 2026 the
       columns were D (k / (N_d - 1))^2 for every row: a steep ray's neighbours were a vertical ray cut short and rays
       of far lower elevation, whose multiply scattered light differs (rays to points kilometres up on Mars 14-17 %
-      of the horizon sky off at the 99th percentile, now 2.4-9.0 %: ``tools/measure_sun_free_table.py``,
-      docs/quality.md). The key tiles of a camera whose altitude moves keep those columns
-      (:attr:`Tile.vertical_columns` False): two keys' texels then map rays of one length.
+      of the horizon sky off at the 99th percentile, now 2.5-9.0 %: ``tools/measure_sun_free_table.py``,
+      docs/quality.md). The key tiles of a camera whose frames blend keys of different altitudes keep those
+      columns (:attr:`Tile.vertical_columns` False): two keys' texels then map rays of one length.
 Within one azimuth slice the shader blends (row, column) bilinearly from four unfiltered texels.
 
 The sky view (:func:`sky_view`, the tile's last columns): the Precise sky by view direction (zenith rows crowded at
@@ -1113,8 +1113,9 @@ class Tile:
     camera_sky_rayleigh: np.ndarray | None = None
     camera_sky_mie: np.ndarray | None = None
     #: Each row's distance columns start at its vertical ray (:func:`cell_distances`); False for the key tiles of a
-    #: camera whose altitude moves, whose columns all start at the camera (d_min = 0): two keys' texels then map rays
-    #: of one length, which is what blending them needs. The shader reads it from ``atmos_precise_atlas``'s z.
+    #: camera whose frames blend keys of different altitudes (:attr:`KeyTiles.vertical_columns`), whose columns all
+    #: start at the camera (d_min = 0): two keys' texels then map rays of one length, which is what blending them
+    #: needs. The shader reads it from ``atmos_precise_atlas``'s z.
     vertical_columns: bool = True
 
     def pixels(self) -> np.ndarray:
@@ -1738,6 +1739,14 @@ class KeyTiles:
     weights: tuple[float, ...]
     #: The step used, in key steps (1, or larger where ``max_keys`` forced coarser keys).
     step: float = 1.0
+
+    @property
+    def vertical_columns(self) -> bool:
+        """Whether the key tiles may have each row's columns start at its vertical ray (:attr:`Tile.vertical_columns`):
+        no input blends two keys of different camera altitudes (a still camera, a sun alone, a cut between cameras
+        whose frames each sit on a key); where one does, both keys' texels must map rays of one length."""
+        return not any(0.0 < weight < 1.0 and self.keys[segment][0] != self.keys[segment + 1][0]
+                       for segment, weight in zip(self.segments, self.weights))
 
 
 def key_tiles(camera_altitudes_m: ArrayLike, sun_elevations_rad: ArrayLike, *, max_keys: int | None = None,

@@ -222,6 +222,12 @@ def test_each_rows_columns_start_at_its_vertical_ray():
     np.testing.assert_allclose(flat, np.broadcast_to(1e6 * np.linspace(0.0, 1.0, shape.distances) ** 2, flat.shape))
     assert bake_tile(EARTH, 30.0, 0.2).vertical_columns
 
+    # key tiles: the vertical columns wherever no frame blends two keys of different camera altitudes
+    sun = [math.radians(e) for e in (30.0, 20.0, 10.0)]
+    assert key_tiles([2.0, 2.0, 2.0], sun).vertical_columns                            # a sun alone
+    assert not key_tiles(np.linspace(2.0, 300.0, 50), [0.3] * 50).vertical_columns     # a climb: frames between keys
+    cut = key_tiles([2.0, 2.0, 1500.0, 1500.0], [0.3] * 4)                              # a cut: every frame on a key
+    assert set(cut.weights) <= {0.0, 1.0} and cut.vertical_columns
 
 @pytest.mark.parametrize("atm", [EARTH, MARS], ids=["earth", "mars"])
 def test_steep_rays_to_high_points_follow_the_integrals(atm):

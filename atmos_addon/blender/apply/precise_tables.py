@@ -326,9 +326,8 @@ def _integrate_preview(request: _Request) -> list[Tile]:
 
 
 def _tiles(request: _Request, *, preview: bool) -> list[Tile]:
-    vertical = len({altitude for altitude, _ in request.path.keys}) == 1   # Tile.vertical_columns
     return [bake_tile(request.atmosphere, altitude, elevation, max_distance_m=request.shared_distance_m,
-                      preview=preview, vertical_columns=vertical, **request.options)
+                      preview=preview, vertical_columns=request.path.vertical_columns, **request.options)
             for altitude, elevation in request.path.keys]
 
 
