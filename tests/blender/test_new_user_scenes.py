@@ -665,7 +665,9 @@ def test_a_cut_between_cameras_renders_each_shot_with_its_own_table(tmp_path, qu
     assert summary == {"addon_loaded": False, "cameras": {"1": "Test Camera", "2": "Test Camera.001"}}
     for frame in (1, 2):
         farm = np.load(str(tmp_path / f"farm_{frame}.npy"))
-        assert np.max(np.abs(farm - references[frame])) <= 1e-4, frame
+        # 2e-4: the cut's key tiles share the path's largest distance D, so the ground camera's columns sit at other
+        # distances than its still tile's (1.2e-4 since each row's columns start at its vertical ray, stop 55)
+        assert np.max(np.abs(farm - references[frame])) <= 2e-4, frame
 
 
 def test_a_world_shared_with_a_scene_without_atmos_keeps_rendering_there():

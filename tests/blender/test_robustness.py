@@ -355,7 +355,8 @@ def test_an_animated_table_laid_out_by_an_older_atmos_is_baked_again_on_opening(
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
     image = bpy.data.images[precise_nodes.IMAGE_NAME]
-    assert image["atmos_layout"] == 7 and image["atmos_bake_key"] != "an older layout's key"
+    from atmos_addon.blender.apply import precise_tables
+    assert image["atmos_layout"] == precise_tables._LAYOUT and image["atmos_bake_key"] != "an older layout's key"
     assert tuple(image.size) == (DEFAULT_SHAPE.width, 3 * precise_nodes.ALTITUDES)
 
 
