@@ -141,8 +141,8 @@ class Geometry:
 
 def build_table(atm, tables, multiple_scattering: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(S_R, S_M) per unit E_top at every texel, each (R, MU, MU_S, NU, 3) float32; S_R holds S_ms / Phi_R(nu)."""
-    r, mu, mu_s, nu, ground = Geometry(atm).texel_parameters()
     geometry = Geometry(atm)
+    r, mu, mu_s, nu, ground = geometry.texel_parameters()
     length = np.where(ground, np.maximum(-r * mu - _safe_sqrt(r * r * (mu * mu - 1.0) + geometry.bottom ** 2), 0.0),
                       geometry.distance_to_top(r, mu))
     s_r = np.zeros(r.shape + (3,), np.float32)
@@ -232,11 +232,10 @@ def compare(atm, tables, table, camera_altitude_m: float, sun_elevation_deg: flo
     nu = views @ sun
     r_c = atm.planet_radius + camera_altitude_m
     mu = views[:, 2]
-    tau, j_r, j_m, *_ = precise.ray_integrals(atm, tables, r_c, mu, math.sin(e_s), nu, d,
-                                              multiple_scattering=multiple_scattering)
+    tau, truth = precise.ray_inscattering(atm, tables, r_c, mu, math.sin(e_s), nu, d,
+                                          multiple_scattering=multiple_scattering)
     phase_r, phase_m = phase_rayleigh(nu)[:, None], phase_hg(nu, atm.mie_g)
     e_top = np.asarray(atm.sun_irradiance_top)
-    truth = e_top * (phase_r * j_r + phase_m * j_m)
 
     tile = precise.bake_tile(atm, camera_altitude_m, e_s, multiple_scattering=multiple_scattering)
     _, tile_light = precise.evaluate(tile, views, sun, d, atm)
@@ -261,8 +260,7 @@ def compare(atm, tables, table, camera_altitude_m: float, sun_elevation_deg: flo
     flat[across < 1e-6] = (1.0, 0.0)
     nu_h = flat @ sun[:2]
     to_top = precise.distance_to_top(np.zeros_like(d), camera_altitude_m, atm)
-    _, h_r, h_m, *_ = precise.ray_integrals(atm, tables, r_c, 0.0, math.sin(e_s), nu_h, to_top)
-    haze = e_top * (phase_rayleigh(nu_h)[:, None] * h_r + phase_hg(nu_h, atm.mie_g) * h_m)   # every order: what is seen
+    _, haze = precise.ray_inscattering(atm, tables, r_c, 0.0, math.sin(e_s), nu_h, to_top)   # every order: what is seen
     lit = truth > 1e-4 * haze     # relative errors where L_in is 0.01 % of that sky or more (not in the shadow)
     with np.errstate(divide="ignore", invalid="ignore"):
         scale = np.maximum(truth, 1e-30)

@@ -1303,6 +1303,20 @@ def ray_integrals(atm: Atmosphere, tables: tuple, radius_m: ArrayLike, view_cos_
     return tau, j_r, j_m, start_r, start_m, beta_ex[..., 0, :]
 
 
+def ray_inscattering(atm: Atmosphere, tables: tuple, radius_m: ArrayLike, view_cos_zenith: ArrayLike,
+                     sun_cos_zenith: ArrayLike, nu: ArrayLike, length_m: ArrayLike, *,
+                     multiple_scattering: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(tau, L_in), each (..., 3), along the rays of :func:`ray_integrals` (same arguments), the phase functions
+    applied as the shader applies them to the table: L_in = E_top [Phi_R(nu) J_R + Phi_HG(nu, g) J_M] (W/(m^2 sr)).
+    What the tile's cells hold before the division by 1 - exp(-tau), for any ray: the yardstick of the table
+    (``tools/measure_sun_free_table.py``, the tests)."""
+    tau, j_r, j_m, *_ = ray_integrals(atm, tables, radius_m, view_cos_zenith, sun_cos_zenith, nu, length_m,
+                                      multiple_scattering=multiple_scattering)
+    nu = np.asarray(nu, dtype=np.float64)
+    light = phase_rayleigh(nu)[..., None] * j_r + phase_hg(nu, atm.mie_g) * j_m
+    return tau, np.asarray(atm.sun_irradiance_top) * light
+
+
 def horizon_cosine(camera_altitude_m: float, atm: Atmosphere) -> float:
     """Zenith cosine of the horizon seen from altitude h_c (clamped at 0): -sqrt(h_c (2 R + h_c)) / (R + h_c)."""
     h_c = max(float(camera_altitude_m), 0.0)

@@ -9,15 +9,15 @@ import pytest
 
 from atmos_addon.physics import Atmosphere
 from atmos_addon.physics.optical_depth import optical_depth_to_space
-from atmos_addon.physics.phase import phase_hg, phase_rayleigh
+from atmos_addon.physics.phase import phase_hg
 from atmos_addon.physics.precise import (ALTITUDE_MAX_STEP_M, ALTITUDE_SCALE_M, ALTITUDE_STEP, DEFAULT_SHAPE,
                                          MultipleScatteringTable, camera_sky_elevations, camera_sky_from_tile,
                                          camera_sky_rows, horizon_elevation,
                                          SunTransmittanceTable, TableShape, atmosphere_tables, bake_tile,
                                          blend_tiles, distance_to_top, evaluate, horizon_cosine, key_tiles,
                                          lighting_from_tile, max_distance, mid_step_error, path_coordinates,
-                                         ray_integrals, shared_max_distance, sky_view_cosines, sky_view_rows,
-                                         cell_distances, column_power, row_altitudes,
+                                         ray_inscattering, ray_integrals, shared_max_distance, sky_view_cosines,
+                                         sky_view_rows, cell_distances, column_power, row_altitudes,
                                          sky_from_tile, sky_path_length, sky_radiance, target_altitude)
 from atmos_addon.physics.sky import dome_distance_approx
 from atmos_addon.physics.sky import sky_radiance as dome_sky_radiance
@@ -241,20 +241,17 @@ def test_steep_rays_to_high_points_follow_the_integrals(atm):
         e_s = math.radians(sun_deg)
         sun = np.array([math.cos(e_s), 0.0, math.sin(e_s)])
         elevation, azimuth = np.meshgrid(np.radians([30.0, 45.0, 60.0, 89.0]), np.radians([0.0, 90.0, 180.0]))
-        views = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth),
-                          np.sin(elevation)], -1).reshape(-1, 1, 3)
-        distances = np.array([3e3, 1e4, 3e4])[None, :]
-        views, distances = np.broadcast_arrays(views, distances[..., None])[0].reshape(-1, 3), np.broadcast_to(
-            distances, views.shape[:1] + distances.shape[1:]).reshape(-1)
+        directions = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth),
+                               np.sin(elevation)], -1).reshape(-1, 3)
+        views = np.repeat(directions, 3, axis=0)                      # each direction at 3, 10 and 30 km
+        distances = np.tile([3e3, 1e4, 3e4], len(directions))
         nu = views @ sun
         r_c = atm.planet_radius + camera_altitude
-        _, j_r, j_m, *_ = ray_integrals(atm, tables, r_c, views[:, 2], math.sin(e_s), nu, distances)
-        truth = atm.sun_irradiance_top * (phase_rayleigh(nu)[:, None] * j_r + phase_hg(nu, atm.mie_g) * j_m)
+        _, truth = ray_inscattering(atm, tables, r_c, views[:, 2], math.sin(e_s), nu, distances)
         flat = views[:, :2] / np.linalg.norm(views[:, :2], axis=1, keepdims=True)
         nu_h = flat @ sun[:2]
         to_top = distance_to_top(np.zeros(len(nu_h)), camera_altitude, atm)
-        _, h_r, h_m, *_ = ray_integrals(atm, tables, r_c, 0.0, math.sin(e_s), nu_h, to_top)
-        haze = atm.sun_irradiance_top * (phase_rayleigh(nu_h)[:, None] * h_r + phase_hg(nu_h, atm.mie_g) * h_m)
+        _, haze = ray_inscattering(atm, tables, r_c, 0.0, math.sin(e_s), nu_h, to_top)
         _, l_in = evaluate(bake_tile(atm, camera_altitude, e_s), views, sun, distances, atm)
         worst = max(worst, float(np.max(np.abs(l_in - truth) / haze)))
     assert worst < 0.05, worst
