@@ -83,6 +83,7 @@ import os
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, DTypeLike
@@ -1057,6 +1058,42 @@ class MultipleScatteringTable:
 #: 1.9 % / 2.5 %, Mars 0.2 % / 6.4 %, the overcast 1 deg sun 8.2 %, the blue hour 6.5 % (3.8 %; 13 % with stop 48's
 #: nodes).
 PREVIEW_RESOLUTION = {"n_altitudes": 12, "n_cosines": 17}
+class TableStore(Protocol):
+    """Somewhere beyond this process that keeps what :func:`stored` builds: ``load`` returns the object saved under
+    ``key`` (None when there is none), ``save`` keeps one. The tests' store (``tests/conftest.py``) shares the tables
+    and tiles that many tests bake alike between their processes."""
+
+    def load(self, key: str) -> object | None: ...
+
+    def save(self, key: str, value: object) -> None: ...
+
+
+_STORE: list[TableStore] = []
+
+
+def use_store(store: TableStore | None) -> None:
+    """Keep the per-atmosphere tables and the tiles in ``store`` as well as in memory (None: in memory only)."""
+    _STORE[:] = [] if store is None else [store]
+
+
+def current_store() -> TableStore | None:
+    """The store :func:`use_store` set, or None."""
+    return _STORE[0] if _STORE else None
+
+
+def stored(inputs: tuple, build: Callable[[], object]) -> object:
+    """``build()``, or what the store (:func:`use_store`) kept for ``inputs``, a tuple of plain values whose
+    ``repr`` names them (frozen dataclasses included)."""
+    if not _STORE:
+        return build()
+    key = repr(inputs)
+    value = _STORE[0].load(key)
+    if value is None:
+        value = build()
+        _STORE[0].save(key, value)
+    return value
+
+
 #: How many atmospheres' tables :func:`atmosphere_tables` keeps, and apart from them how many previews.
 TABLES_KEPT = 8
 PREVIEWS_KEPT = 2
@@ -1075,8 +1112,12 @@ def atmosphere_tables(atm: Atmosphere, ground_albedo: tuple[float, float, float]
         if key in _TABLES:
             _TABLES.move_to_end(key)
             return _TABLES[key]
-    sun_table = SunTransmittanceTable(atm)
-    tables = sun_table, MultipleScatteringTable(atm, sun_table, key[1], **(PREVIEW_RESOLUTION if preview else {}))
+
+    def build() -> tuple[SunTransmittanceTable, MultipleScatteringTable]:
+        sun_table = SunTransmittanceTable(atm)
+        return sun_table, MultipleScatteringTable(atm, sun_table, key[1], **(PREVIEW_RESOLUTION if preview else {}))
+
+    tables = stored(("atmosphere_tables", key), build)
     with _TABLES_LOCK:
         _TABLES[key] = tables
         for kept, limit in ((False, TABLES_KEPT), (True, PREVIEWS_KEPT)):
@@ -1168,9 +1209,12 @@ def bake_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: floa
 def _cached_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad: float, multiple_scattering: bool,
                  ground_albedo: tuple[float, float, float], shape: TableShape, max_distance_m: float | None,
                  preview: bool, vertical_columns: bool) -> Tile:
-    return _frozen(integrate_tile(atm, camera_altitude_m, sun_elevation_rad, multiple_scattering=multiple_scattering,
-                                  ground_albedo=ground_albedo, shape=shape, max_distance_m=max_distance_m,
-                                  preview=preview, vertical_columns=vertical_columns))
+    inputs = (atm, camera_altitude_m, sun_elevation_rad, multiple_scattering, ground_albedo, shape, max_distance_m,
+              preview, vertical_columns)
+    return _frozen(stored(("tile", inputs), lambda: integrate_tile(
+        atm, camera_altitude_m, sun_elevation_rad, multiple_scattering=multiple_scattering,
+        ground_albedo=ground_albedo, shape=shape, max_distance_m=max_distance_m, preview=preview,
+        vertical_columns=vertical_columns)))
 
 
 def _frozen(tile: Tile) -> Tile:
