@@ -42,19 +42,33 @@ RETIRED_BALANCED_NOTE = ("the Balanced quality level was retired in December 202
                          "it was no more accurate than Fast, at Precise's cost)")
 EEVEE_ENGINES = frozenset({"BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"})
 
-#: The view-layer AOVs (name, kind). Compositor mode: the per-sample transmittance and in-scattering and the
-#: coverage. Per Pixel mode: the view direction, the coverage and the distance (km); a colour AOV first: Eevee in
-#: Blender 5.2 writes 0 into a view layer's first AOV when that one is a Value AOV.
+#: The view-layer AOVs (name, kind). Compositor mode: the per-sample transmittance, its square and cube (the
+#: moments the compositor reads two surfaces' transmittances from, ``nodes.composite``), the in-scattering and the
+#: coverage. Per Pixel mode: the view direction, the coverage, the distance (km) and the moments of the distance's
+#: q = s / (s + s_0). The colour AOVs come first: Eevee writes 0 into a Value AOV that a colour AOV follows
+#: (``blender.apply.compositor.aovs_out_of_order``).
 AOV_TRANSMITTANCE = "atmos_transmittance"
+AOV_TRANSMITTANCE_SQUARED = "atmos_transmittance2"
+AOV_TRANSMITTANCE_CUBED = "atmos_transmittance3"
 AOV_INSCATTERING = "atmos_inscattering"
 AOV_COVERAGE = "atmos_coverage"
 AOV_DISTANCE = "atmos_distance"
 AOV_VIEW = "atmos_view"
+AOV_MOMENTS = "atmos_moments"
 AOVS = {
-    "COMPOSITOR": ((AOV_TRANSMITTANCE, "COLOR"), (AOV_INSCATTERING, "COLOR"), (AOV_COVERAGE, "VALUE")),
-    "PER_PIXEL": ((AOV_VIEW, "COLOR"), (AOV_COVERAGE, "VALUE"), (AOV_DISTANCE, "VALUE")),
+    "COMPOSITOR": ((AOV_TRANSMITTANCE, "COLOR"), (AOV_INSCATTERING, "COLOR"), (AOV_TRANSMITTANCE_SQUARED, "COLOR"),
+                   (AOV_TRANSMITTANCE_CUBED, "COLOR"), (AOV_COVERAGE, "VALUE")),
+    "PER_PIXEL": ((AOV_VIEW, "COLOR"), (AOV_MOMENTS, "COLOR"), (AOV_COVERAGE, "VALUE"), (AOV_DISTANCE, "VALUE")),
     "IN_RENDER": (),
 }
+def material_aovs(mode: str) -> tuple[str, ...]:
+    """The names of the AOVs the materials write in ``mode``."""
+    return tuple(name for name, _ in AOVS[mode])
+
+
+#: The render pass of the sky a pixel shows (the Render Layers output "Environment"; "Env" in Blender 4.5), which the
+#: AOV modes' compositor reads (``nodes.composite``).
+ENVIRONMENT_PASS = "Environment"
 
 #: Eevee's world goes one flat colour above this camera clip end / clip start (float32 precision of the projection;
 #: measured with tools/measure_eevee_clip_range.py on 4.5.15, 5.2.3 and 5.3.0: every clip start from 1 mm to 10 m

@@ -25,19 +25,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import bpy  # noqa: E402
 
-from atmos_addon.nodes import aerial_perspective, composite, parts, per_pixel, registry, sky, sky_view, stamps  # noqa: E402
+from atmos_addon.nodes import aerial_perspective, parts, per_pixel, registry, sky, sky_view, stamps  # noqa: E402
 from atmos_addon.nodes.sky import SkyFeatures  # noqa: E402
 from atmos_addon.nodes.terms import AerialFeatures  # noqa: E402
 
 
 def _builds() -> tuple[tuple[str, str, object], ...]:
-    combine = composite.ensure_composite_group()
     precise = AerialFeatures(level="precise")
     return (
         ("Atmos Aerial Perspective (Compositor mode, per sample)", "ShaderNodeTree",
          lambda tree: aerial_perspective.build_aerial_perspective(tree, precise)),
         ("Atmos Aerial Composite (Per Pixel mode)", "CompositorNodeTree",
-         lambda tree: per_pixel.build_per_pixel_composite(tree, precise, combine)),
+         lambda tree: per_pixel.build_per_pixel_composite(tree, precise)),
         ("Atmos Sky", "ShaderNodeTree", lambda tree: sky.build_sky(tree, SkyFeatures(level="precise"))),
         ("Atmos Sky View", "ShaderNodeTree", lambda tree: sky_view.build_sky_view(tree, SkyFeatures(level="precise"))),
     )

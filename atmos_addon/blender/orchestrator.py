@@ -145,6 +145,8 @@ def material_group(scene):
     if plan.mode == "PER_PIXEL":
         per_pixel = compositor.ensure_per_pixel_group(features)
         built = f"{built.split(':')[0]}, per pixel: {_inline_count(per_pixel)} compositor nodes"
+    elif plan.mode == "COMPOSITOR":
+        scene_reading.groups().composite.ensure_composite_group()   # rebuilt in place when stale
     scene_reading.set_if_changed(scene.atmos, "status_built", built)
     return group
 
@@ -198,8 +200,8 @@ def _ensure_groups(scene) -> None:
     group = material_group(scene)
     if plan.compositor is not None and stamps.local(bpy.data.node_groups, materials.SURFACE_GROUP) is not None:
         materials.ensure_surface_group(group, plan.surface_modes)   # the materials' group, once they have it
-    if plan.compositor is not None:
-        compositor.link_alpha(scene)   # a group node of a file saved before the composite read the render's alpha
+    if plan.compositor is not None and compositor.installed_evaluation(scene) == plan.compositor:
+        compositor.upgrade_passes(scene, plan.compositor)
     if plan.sky:
         sky_group(scene)
         world.update_sky_lighting(scene, facts.sky_features(plan))

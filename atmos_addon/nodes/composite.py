@@ -1,72 +1,227 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The "Atmos Aerial Composite" compositor group: the per-pixel combination of the Compositor mode's AOVs.
+"""The per-pixel combination of the render with the atmosphere, and the "Atmos Aerial Composite" group (the
+Compositor mode's).
 
-Per pixel the materials leave three AOV sums: ``T = sum a_i T_i``, ``L = sum a_i L_i`` and the coverage
-``C = sum a_i`` over the surfaces that wrote (alpha a_i, 1 for opaque surfaces, averaged over the pixel's samples).
-The render's alpha A bounds the coverage: a holdout object (a collection set to Holdout in the view layer) is a hole
-of alpha 0 whose material still writes its AOVs (until December 2026 its hole got the haze, RGB with alpha 0):
+A pixel of the render is a filtered sum over its samples. The materials write, per sample and weighted by the
+surface's opacity a_i, what the atmosphere does to it (the Compositor mode: F_ex and L_in; the Per Pixel mode: the
+distance and direction, from which the compositor evaluates them), the world writes its own coverage, and the render
+gives the sky it shows (the Environment pass). So per pixel
 
-    C' = min(C, A),  w = C' / C  (0 where C = 0),  k = max(C', 1)
-    out = Image * (w T + max(1 - C', 0)) / k + w L / k
+    C = sum a_i                  the Atmos surfaces' coverage     S = the sky the pixel shows (Environment)
+    T = sum a_i T_i              their transmittance              A = the render's alpha
+    L = sum a_i L_i              their in-scattering
+    P = Image - S                the surfaces' radiance, sum a_i I_i
 
-With every pixel's alpha 1 (an opaque film) and no holdout, C' = C: the composite as before. The Alpha input is 1
-where nothing feeds it (a group node of a file saved before it).
+and the exact result, sum a_i (I_i T_i + L_i) + S, would need I_i T_i per sample. :func:`combine` forms
 
-(:mod:`atmos_addon.blender.apply.compositor` says what each case gives). Blender 5.0 composites with the shader
-nodes (Math, Mix); 4.5 has compositor nodes of its own (Math, MixRGB).
+    C' = min(C, A),  w = C' / C        a holdout object's hole (alpha 0) stays a hole, its AOVs notwithstanding
+    out = S + P w T / C' + w L / max(C', 1) + w K      (S + P, the render itself, where C' = 0)
+
+which is exact for a pixel of one surface, however much sky it shows (the sky passes through untouched: no dark
+or light outline along a ridge), and for every pixel of the sky. A surface Atmos does not manage (an object without
+a material) writes no AOVs: alone in a pixel it passes through untouched; sharing one with a managed surface it
+takes that surface's atmosphere. Where two surfaces n, f share a pixel (coverages
+c_n, c_f), P T / C misses the product of their differences,
+
+    K = c_n c_f / C (T_n - T_f) (I_n - I_f),
+
+for which the compositor has the two transmittances (:func:`two_point`: the pixel's samples' values reconstructed
+as two, with their shares, from their first three moments) but not the two radiances: :func:`neighbour_slope`
+reads I_n - I_f off the 3 x 3 pixels around, each a mix of the same two surfaces in other shares (the slope of
+their radiance against their share, by least squares), bounded so that neither radiance it implies is negative.
+docs/silhouettes.md measures what is left (pixels that mix three surfaces or more, textures that change within a
+pixel). The Compositor mode's group reconstructs the transmittance per colour channel from the per-sample moments
+T, sum a_i T_i^2 and sum a_i T_i^3; the Per Pixel group (:mod:`.per_pixel`) reconstructs the distance and
+evaluates the atmosphere at both.
+
+Film > Transparent: the render shows no sky (Image is the surfaces alone, premultiplied) while the Environment pass
+still holds it, so S is the Environment times 1 - the Film Transparent input (driven from the scene). The add-on
+feeds every input when it updates a file saved before they existed (``blender.apply.compositor.link_inputs``);
+Blender 4.5 composites with its own Math nodes, 5.0 with the shader's (:class:`.graph.CompositorBuilder` builds
+either).
 """
 
 from __future__ import annotations
 
 import bpy
 
-from . import stamps
-
-#: Blender 5.0 replaced scene.node_tree / use_nodes by scene.compositing_node_group, and compositor trees take the
-#: shader's Math and Mix nodes.
-GROUP_API = "compositing_node_group" in bpy.types.Scene.bl_rna.properties
-
-
-def _mix(nodes, blend: str, location):
-    if GROUP_API:
-        node = nodes.new("ShaderNodeMix")
-        node.data_type = "RGBA"
-        node.blend_type = blend
-        node.clamp_result = False
-        inputs = {socket.identifier: socket for socket in node.inputs}
-        inputs["Factor_Float"].default_value = 1.0
-        out = next(socket for socket in node.outputs if socket.identifier == "Result_Color")
-        a, b = inputs["A_Color"], inputs["B_Color"]
-    else:
-        node = nodes.new("CompositorNodeMixRGB")
-        node.blend_type = blend
-        node.use_clamp = False
-        node.inputs[0].default_value = 1.0
-        a, b, out = node.inputs[1], node.inputs[2], node.outputs[0]
-    node.location = location
-    return a, b, out
-
-
-def _math(nodes, operation: str, location, *, clamp: bool = False):
-    node = nodes.new("ShaderNodeMath" if GROUP_API else "CompositorNodeMath")
-    node.operation = operation
-    node.use_clamp = clamp
-    node.location = location
-    return node
-
+from . import parts, stamps
+from .graph import CompositorBuilder, Operand, is_vector
 
 #: The group's interface: (name, in/out, socket type).
-INTERFACE = (("Image", "INPUT", "NodeSocketColor"), ("Transmittance", "INPUT", "NodeSocketColor"),
-             ("Inscattering", "INPUT", "NodeSocketColor"), ("Coverage", "INPUT", "NodeSocketFloat"),
-             ("Alpha", "INPUT", "NodeSocketFloat"), ("Image", "OUTPUT", "NodeSocketColor"))
-#: Coverage below which a pixel counts as uncovered when its weight w = C' / C is formed (a divide by 0 guard).
-_TINY_COVERAGE = 1e-20
+INTERFACE = (("Image", "OUTPUT", "NodeSocketColor"), ("Image", "INPUT", "NodeSocketColor"),
+             ("Environment", "INPUT", "NodeSocketColor"), ("Film Transparent", "INPUT", "NodeSocketFloat"),
+             ("Alpha", "INPUT", "NodeSocketFloat"),
+             ("Coverage", "INPUT", "NodeSocketFloat"), ("Transmittance", "INPUT", "NodeSocketColor"),
+             ("Transmittance Squared", "INPUT", "NodeSocketColor"),
+             ("Transmittance Cubed", "INPUT", "NodeSocketColor"), ("Inscattering", "INPUT", "NodeSocketColor"))
+#: The spread of a pixel's values below which they are read as one value, as a share of their mean square: Eevee
+#: writes its AOVs as half floats (11 bits: a mean square and a squared mean of one value then differ by up to 1e-3
+#: of it, measured), which would otherwise read as two values.
+MOMENT_ROUNDING = 2e-3
+#: The largest skewness |mu_3| / sigma^3 of the two-point reconstruction (a bound on what rounding can make of it).
+MAX_SKEW = 8.0
+#: The least spread of the neighbours' shares (their weighted variance over their weight) a slope is read from.
+SPREAD_FLOOR = 0.01
+#: Covers below this are no cover (a guard for divisions).
+TINY = 1e-12
+#: The 3 x 3 neighbourhood the slope of the radiance is read from: (dx, dy) in pixels.
+NEIGHBOURHOOD = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+
+
+def _sqrt(g, value: Operand):
+    """sqrt per component (a colour) or of a scalar."""
+    return g.power_per_channel(value, 0.5, label="sqrt") if is_vector(value) else g.sqrt(value)
+
+
+def two_point(g, coverage: Operand, first: Operand, second: Operand, third: Operand):
+    """(share_lo, share_hi, lo, hi): the two values and their shares (of the coverage) whose coverage-weighted sums
+    of x, x^2 and x^3 are ``first``, ``second`` and ``third`` over ``coverage`` = sum a_i: the pixel's samples read
+    as two values, exact where it holds two (the Gauss quadrature of two nodes for those moments). Per component
+    for colours. With the mean mu, variance v and third central moment k3 of the values, the two lie b below and
+    a above the mean with a - b = k3 / v and a b = v, and their shares balance the mean (p_hi a = p_lo b). A spread
+    under :data:`MOMENT_ROUNDING` of the mean square reads as one value (share_lo 1, lo = hi = mu)."""
+    mean = g.div(first, g.max(coverage, TINY), label="mu")
+    square = g.div(second, g.max(coverage, TINY), label="mu_2")
+    cube = g.div(third, g.max(coverage, TINY), label="mu_3")
+    variance = g.max(g.sub(g.sub(square, g.mul(mean, mean)), g.mul(square, MOMENT_ROUNDING)), 0.0, label="v")
+    skew = g.sub(cube, g.mul(mean, g.sub(g.mul(square, 3.0), g.mul(g.mul(mean, mean), 2.0))), label="k3")
+    spread = _sqrt(g, variance)
+    bound = g.mul(spread, MAX_SKEW)
+    difference = g.min(g.max(g.div(skew, g.max(variance, TINY)), g.neg(bound)), bound, label="a - b")
+    root = _sqrt(g, g.add(g.mul(difference, difference), g.mul(variance, 4.0)))
+    above = g.mul(g.add(difference, root), 0.5, label="a")
+    below = g.mul(g.sub(root, difference), 0.5, label="b")
+    share_hi = g.div(below, root, label="p_hi")        # 0 where root = 0: one value
+    return g.sub(1.0, share_hi, label="p_lo"), share_hi, g.sub(mean, below, label="lo"), g.add(mean, above, label="hi")
+
+
+def _accumulate(g, weight, position, radiance, lo, reach, w, wf, wff, wi, wfi):
+    """One neighbour's terms added to the least-squares sums of :func:`neighbour_slope`: its weight (coverage),
+    share f of the hi value (from its mean value ``position`` / ``weight``) and radiance I = ``radiance`` /
+    ``weight``; returns (w, w f, w f^2, w I, w f I) with it."""
+    mean = g.div(position, weight)
+    share = g.min(g.max(g.mul(g.sub(mean, lo), reach), 0.0), 1.0, label="f")
+    colour = g.div(radiance, weight, label="I")
+    weighted = g.mul(share, weight)
+    return (g.add(w, weight), g.add(wf, weighted), g.add(wff, g.mul(weighted, share)),
+            g.add(wi, g.mul(colour, weight)), g.add(wfi, g.mul(colour, weighted)))
+
+
+def _accumulate_part(name: str, kind: str) -> parts.Part:
+    return parts.define(name, 1, (("Weight", parts.FLOAT), ("Position", kind), ("Radiance", parts.VECTOR),
+                                  ("Lo", kind), ("Reach", kind), ("W", parts.FLOAT), ("WF", kind), ("WFF", kind),
+                                  ("WI", parts.VECTOR), ("WFI", parts.VECTOR)),
+                        (("W", parts.FLOAT), ("WF", kind), ("WFF", kind), ("WI", parts.VECTOR), ("WFI", parts.VECTOR)),
+                        _accumulate, description="One neighbouring pixel added to the sums of a least-squares slope "
+                                                 "(Atmos)")
+
+
+ACCUMULATE = _accumulate_part("Atmos Neighbour Sums", parts.FLOAT)
+ACCUMULATE_COLOUR = _accumulate_part("Atmos Neighbour Sums (Colour)", parts.VECTOR)
+
+
+def neighbour_slope(g, radiance: Operand, coverage: Operand, position: Operand, lo: Operand, hi: Operand,
+                    share_lo: Operand, share_hi: Operand):
+    """I_hi - I_lo: how the surfaces' radiance (``radiance`` / ``coverage``, a colour) of the 3 x 3 pixels around
+    changes with their share of the centre's ``hi`` value, read from their own mean value (``position`` /
+    ``coverage``, in the units of ``lo`` and ``hi``; a colour for per-channel values): the least-squares slope,
+    each pixel weighted by its coverage (the sky's pixels carry none). Bounded so that neither radiance it implies
+    for the centre, I_lo = I - p_hi slope and I_hi = I + p_lo slope (I the centre's mean radiance), is negative; 0
+    where the pixels' shares hardly differ (:data:`SPREAD_FLOOR`)."""
+    reach = g.div(1.0, g.sub(hi, lo), label="1 / (hi - lo)")   # 0 where hi = lo: every share 0, no slope
+    colour = is_vector(position)
+    zero = (0.0, 0.0, 0.0) if colour else 0.0
+    totals = (0.0, zero, zero, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    for dx, dy in NEIGHBOURHOOD:
+        neighbours = (g.neighbour(coverage, dx, dy, label="C"), g.neighbour(position, dx, dy, label="x"),
+                      g.neighbour(radiance, dx, dy, label="P"))
+        totals = g.call(ACCUMULATE_COLOUR if colour else ACCUMULATE, *neighbours, lo, reach, *totals)
+    w, wf, wff, wi, wfi = totals
+    total = g.max(w, TINY)
+    variance = g.sub(wff, g.div(g.mul(wf, wf), total), label="var f")
+    covariance = g.sub(wfi, g.mul(wi, g.div(wf, total)), label="cov f, I")
+    slope = g.div(covariance, g.max(variance, g.mul(total, SPREAD_FLOOR)), label="I_hi - I_lo")
+    centre = g.div(radiance, g.max(coverage, TINY), label="I")
+    return g.min(g.max(slope, g.neg(g.div(centre, share_lo))), g.div(centre, share_hi), label="slope, bounded")
+
+
+def correction(g, coverage: Operand, share_lo: Operand, share_hi: Operand, t_lo: Operand, t_hi: Operand,
+               slope: Operand):
+    """K = C p_lo p_hi (T_hi - T_lo) (I_hi - I_lo): what P T / C misses where two surfaces share a pixel."""
+    shares = g.mul(g.mul(share_lo, share_hi), coverage)
+    difference = g.sub(t_hi, t_lo)
+    return g.mul(g.mul(difference, slope), shares)
+
+
+def _slope_correction(g, radiance, coverage, position, share_lo, share_hi, lo, hi, t_lo, t_hi):
+    """K (:func:`correction`) with the slope of the radiance (:func:`neighbour_slope`) read off the neighbours."""
+    slope = neighbour_slope(g, radiance, coverage, position, lo, hi, share_lo, share_hi)
+    return correction(g, coverage, share_lo, share_hi, t_lo, t_hi, slope)
+
+
+def _two_point_part(name: str, kind: str) -> parts.Part:
+    return parts.define(name, 1, (("Coverage", parts.FLOAT), ("First", kind), ("Second", kind), ("Third", kind)),
+                        (("Share Lo", kind), ("Share Hi", kind), ("Lo", kind), ("Hi", kind)), two_point,
+                        description="A pixel's samples read as two values and their shares, from their first three "
+                                    "coverage-weighted moments (Atmos)")
+
+
+def _correction_part(name: str, kind: str) -> parts.Part:
+    return parts.define(name, 1, (("Radiance", parts.VECTOR), ("Coverage", parts.FLOAT), ("Position", kind),
+                                  ("Share Lo", kind), ("Share Hi", kind), ("Lo", kind), ("Hi", kind),
+                                  ("Transmittance Lo", parts.VECTOR), ("Transmittance Hi", parts.VECTOR)),
+                        (("Correction", parts.VECTOR),), _slope_correction,
+                        description="What the product of a pixel's averages misses where two surfaces share it, "
+                                    "their radiance difference read off the 3 x 3 pixels around (Atmos)")
+
+
+#: The two-point reconstruction of one value per pixel (the Per Pixel mode's distance) and per colour channel (the
+#: Compositor mode's transmittance), and the correction K from it: parts, so that each group stays small.
+TWO_POINT = _two_point_part("Atmos Two Point", parts.FLOAT)
+TWO_POINT_COLOUR = _two_point_part("Atmos Two Point (Colour)", parts.VECTOR)
+CORRECTION = _correction_part("Atmos Two Surface Correction", parts.FLOAT)
+CORRECTION_COLOUR = _correction_part("Atmos Two Surface Correction (Colour)", parts.VECTOR)
+
+
+def shown_sky(g, image: Operand, environment: Operand, film_transparent: Operand):
+    """(S, P): the sky the pixel shows (the Environment pass, nothing with Film > Transparent) and the surfaces'
+    radiance P = Image - S."""
+    sky = g.scale(environment, g.sub(1.0, film_transparent), label="S")
+    return sky, g.sub(image, sky, label="P")
+
+
+def combine(g, *, sky: Operand, surfaces: Operand, alpha: Operand, coverage: Operand, transmittance: Operand,
+            inscattering: Operand, correction_term: Operand | None):
+    """The composited pixel (module docstring): S + P w T / C' + w L / max(C', 1) + w K, the render where C' = 0."""
+    covered = g.min(coverage, alpha, label="C'")
+    weight = g.div(covered, coverage, label="w")             # 0 where nothing Atmos manages wrote
+    attenuation = g.div(g.scale(transmittance, weight), covered, label="w T / C'")
+    factor = g.add(attenuation, g.sub(1.0, g.greater_than(covered, TINY)), label="factor (1 where C' = 0)")
+    lit = g.div(g.scale(inscattering, weight), g.max(covered, 1.0), label="w L")
+    out = g.add(g.add(sky, g.mul(surfaces, factor)), lit)
+    if correction_term is not None:
+        out = g.add(out, g.scale(correction_term, weight), label="+ w K")
+    return out
+
+
+def with_alpha(g, colour: Operand, alpha: Operand):
+    """``colour`` (premultiplied, as the render's RGB) with the render's ``alpha``: the vector arithmetic above
+    drops the alpha, and a transparent film or a holdout's hole keeps its own (Set Alpha, Replace Alpha)."""
+    node = g.node("CompositorNodeSetAlpha", label="the render's alpha")
+    if "Type" in node.inputs:
+        node.inputs["Type"].default_value = "Replace Alpha"
+    else:
+        node.mode = "REPLACE_ALPHA"
+    g.link(colour, node.inputs["Image"])
+    g.link(alpha, node.inputs["Alpha"])
+    return node.outputs["Image"]
 
 
 def _ensure_interface(tree) -> None:
-    """Give ``tree`` the group's interface (:func:`keep_interface`): a group of an earlier version gains the Alpha of
-    version 2 without losing the links into its other inputs."""
-    keep_interface(tree, list(INTERFACE), ordered=False)
+    """Give ``tree`` the group's interface (:func:`keep_interface`): a group of an earlier version gains the inputs it
+    lacks without losing the links into the others."""
+    keep_interface(tree, list(INTERFACE))
 
 
 def keep_interface(tree, wanted: list[tuple[str, str, str]], *, ordered: bool = True) -> None:
@@ -109,54 +264,23 @@ def open_alpha_inputs(tree) -> None:
 
 
 def build_composite_group(tree) -> None:
-    """Build the combining group in ``tree`` (module docstring), in place: its interface is kept."""
+    """Build the Compositor mode's combining group in ``tree`` (module docstring), in place: its interface is kept."""
     tree.nodes.clear()
     _ensure_interface(tree)
-    nodes, links = tree.nodes, tree.links
-    group_in = nodes.new("NodeGroupInput")
-    group_in.location = (-600, 0)
-    group_out = nodes.new("NodeGroupOutput")
-    group_out.location = (800, 0)
-
-    covered = _math(nodes, "MINIMUM", (-850, -300))        # C' = min(C, A)
-    links.new(group_in.outputs["Coverage"], covered.inputs[0])
-    links.new(group_in.outputs["Alpha"], covered.inputs[1])
-    guard = _math(nodes, "MAXIMUM", (-850, -500))
-    links.new(group_in.outputs["Coverage"], guard.inputs[0])
-    guard.inputs[1].default_value = _TINY_COVERAGE
-    weight = _math(nodes, "DIVIDE", (-600, -400))          # w = C' / C
-    links.new(covered.outputs[0], weight.inputs[0])
-    links.new(guard.outputs[0], weight.inputs[1])
-    a, b, transmittance = _mix(nodes, "MULTIPLY", (-350, 300))
-    links.new(group_in.outputs["Transmittance"], a)
-    links.new(weight.outputs[0], b)
-    a, b, inscattering_in = _mix(nodes, "MULTIPLY", (-350, -500))
-    links.new(group_in.outputs["Inscattering"], a)
-    links.new(weight.outputs[0], b)
-
-    k = _math(nodes, "MAXIMUM", (-350, -300))
-    links.new(covered.outputs[0], k.inputs[0])
-    k.inputs[1].default_value = 1.0
-    uncovered = _math(nodes, "SUBTRACT", (-350, -120), clamp=True)
-    uncovered.inputs[0].default_value = 1.0
-    links.new(covered.outputs[0], uncovered.inputs[1])
-
-    a, b, factor_sum = _mix(nodes, "ADD", (-100, 100))
-    links.new(transmittance, a)
-    links.new(uncovered.outputs[0], b)
-    a, b, factor = _mix(nodes, "DIVIDE", (100, 100))
-    links.new(factor_sum, a)
-    links.new(k.outputs[0], b)
-    a, b, attenuated = _mix(nodes, "MULTIPLY", (300, 200))
-    links.new(group_in.outputs["Image"], a)
-    links.new(factor, b)
-    a, b, inscattering = _mix(nodes, "DIVIDE", (300, -150))
-    links.new(inscattering_in, a)
-    links.new(k.outputs[0], b)
-    a, b, result = _mix(nodes, "ADD", (550, 0))
-    links.new(attenuated, a)
-    links.new(inscattering, b)
-    links.new(result, group_out.inputs["Image"])
+    group_in = tree.nodes.new("NodeGroupInput")
+    inputs = group_in.outputs
+    g = CompositorBuilder(tree, {})
+    coverage, transmittance = inputs["Coverage"], inputs["Transmittance"]
+    sky, surfaces = shown_sky(g, inputs["Image"], inputs["Environment"], inputs["Film Transparent"])
+    share_lo, share_hi, t_lo, t_hi = g.call(TWO_POINT_COLOUR, coverage, transmittance,
+                                            inputs["Transmittance Squared"], inputs["Transmittance Cubed"])
+    term = g.call(CORRECTION_COLOUR, surfaces, coverage, transmittance, share_lo, share_hi, t_lo, t_hi, t_lo, t_hi)
+    out = combine(g, sky=sky, surfaces=surfaces, alpha=inputs["Alpha"], coverage=coverage,
+                  transmittance=transmittance, inscattering=inputs["Inscattering"], correction_term=term)
+    output = g.node("NodeGroupOutput", label="Group Output")
+    g.link(with_alpha(g, out, inputs["Alpha"]), output.inputs["Image"])
+    g.prune()
+    g.layout()
     stamps.stamp(tree, stamps.COMPOSITE, "")
 
 

@@ -38,8 +38,8 @@ _COLUMN_WIDTH = 220.0
 _ROW_HEIGHT = 170.0
 
 
-def _is_vector(value: Operand) -> bool:
-    """True for a vector/colour socket or a 3-sequence constant."""
+def is_vector(value: Operand) -> bool:
+    """True for a vector/colour socket or a 3-sequence constant (an operand the builders treat per component)."""
     if isinstance(value, bpy.types.NodeSocket):
         return value.type in _VECTOR_SOCKET_TYPES
     return isinstance(value, Sequence) and not isinstance(value, str)
@@ -71,12 +71,17 @@ class GraphBuilder:
             self.tree.links.new(value, socket)
             source_depth = self._depth.get(value.node.name, 0)
             self._depth[node.name] = max(self._depth[node.name], source_depth + 1)
-        elif _is_vector(value):
+        elif is_vector(value):
             value = tuple(float(v) for v in value)
             if tuple(socket.default_value) != value:
                 socket.default_value = value
         elif socket.default_value != float(value):
             socket.default_value = float(value)
+
+    def link(self, value: Operand, socket: bpy.types.NodeSocket) -> None:
+        """Feed ``value`` (a socket, or a constant for its default) into the input ``socket`` of a node this builder
+        made (a group output, a group node's input)."""
+        self._feed(socket.node, socket, value)
 
     def _math(self, operation: str, *operands: Operand, label: str = "") -> Socket:
         """One scalar Math node."""
@@ -94,11 +99,11 @@ class GraphBuilder:
 
     def _arithmetic(self, operation: str, a: Operand, b: Operand, label: str) -> Socket:
         """``a (op) b`` with Math, or Vector Math if either operand is a vector/colour."""
-        if _is_vector(a) or _is_vector(b):
-            if operation == "MULTIPLY" and not _is_vector(b) and not isinstance(b, bpy.types.NodeSocket):
+        if is_vector(a) or is_vector(b):
+            if operation == "MULTIPLY" and not is_vector(b) and not isinstance(b, bpy.types.NodeSocket):
                 return self.scale(a, b, label=label)
-            a = a if _is_vector(a) or isinstance(a, bpy.types.NodeSocket) else (a, a, a)
-            b = b if _is_vector(b) or isinstance(b, bpy.types.NodeSocket) else (b, b, b)
+            a = a if is_vector(a) or isinstance(a, bpy.types.NodeSocket) else (a, a, a)
+            b = b if is_vector(b) or isinstance(b, bpy.types.NodeSocket) else (b, b, b)
             return self._vector_math(operation, a, b, label=label)
         return self._math(operation, a, b, label=label)
 
@@ -158,26 +163,26 @@ class GraphBuilder:
 
     def neg(self, a: Operand, *, label: str = "") -> Socket:
         """-a"""
-        if _is_vector(a):
+        if is_vector(a):
             return self.scale(a, -1.0, label=label)
         return self._math("MULTIPLY", a, -1.0, label=label)
 
     def multiply_add(self, a: Operand, b: Operand, c: Operand, *, label: str = "") -> Socket:
         """a * b + c (per component if any operand is a vector/colour)."""
-        if any(_is_vector(v) for v in (a, b, c)):
-            a, b, c = (v if _is_vector(v) or isinstance(v, bpy.types.NodeSocket) else (v, v, v) for v in (a, b, c))
+        if any(is_vector(v) for v in (a, b, c)):
+            a, b, c = (v if is_vector(v) or isinstance(v, bpy.types.NodeSocket) else (v, v, v) for v in (a, b, c))
             return self._vector_math("MULTIPLY_ADD", a, b, c, label=label)
         return self._math("MULTIPLY_ADD", a, b, c, label=label)
 
     def abs(self, a: Operand, *, label: str = "") -> Socket:
         """|a| (per component for vectors)."""
-        if _is_vector(a):
+        if is_vector(a):
             return self._vector_math("ABSOLUTE", a, label=label)
         return self._math("ABSOLUTE", a, label=label)
 
     def floor(self, a: Operand, *, label: str = "") -> Socket:
         """floor(a) (per component for vectors)."""
-        if _is_vector(a):
+        if is_vector(a):
             return self._vector_math("FLOOR", a, label=label)
         return self._math("FLOOR", a, label=label)
 
@@ -264,7 +269,7 @@ class GraphBuilder:
 
     def mix(self, factor: Operand, a: Operand, b: Operand, *, label: str = "") -> Socket:
         """Linear blend a (factor 0) to b (factor 1) with a Mix node; colours if a or b is a colour."""
-        colour = _is_vector(a) or _is_vector(b)
+        colour = is_vector(a) or is_vector(b)
         node = self.node("ShaderNodeMix", data_type="RGBA" if colour else "FLOAT", label=label)
         self._feed(node, node.inputs[0], factor)
         a_index, b_index, out_index = (6, 7, 2) if colour else (2, 3, 0)
@@ -292,11 +297,16 @@ class GraphBuilder:
 
         Vector/colour operands are split once with :meth:`separate`; scalars pass to every channel.
         """
-        split = [self.separate(op) if _is_vector(op) else (op, op, op) for op in operands]
+        split = [self.separate(op) if is_vector(op) else (op, op, op) for op in operands]
         channels = [fn(*(parts[c] for parts in split)) for c in range(3)]
         return self.combine(*channels, label=label)
 
     # -- inputs and outputs -------------------------------------------------------------------------
+
+    def neighbour(self, value: Operand, dx: int, dy: int, *, label: str = "") -> Socket:
+        """``value`` at the pixel ``dx`` to the right and ``dy`` up (0 beyond the image): compositor graphs only (a
+        shading point has no neighbours)."""
+        raise TypeError("a shader graph has no neighbouring pixels: neighbour() is for compositor graphs")
 
     def shading_input(self, name: str, *, label: str = "") -> Socket:
         """What the shading point knows, by name (:data:`SHADING_INPUTS`): a new input node's output each call."""
@@ -411,7 +421,7 @@ class CompositorBuilder(GraphBuilder):
 
     @staticmethod
     def _component(value: Operand, index: int) -> float:
-        return float(value[index]) if _is_vector(value) else float(value)
+        return float(value[index]) if is_vector(value) else float(value)
 
     def _math(self, operation: str, *operands: Operand, label: str = "") -> Socket | float:
         if operation in _FOLDED and not any(isinstance(value, bpy.types.NodeSocket) for value in operands):
@@ -433,7 +443,7 @@ class CompositorBuilder(GraphBuilder):
 
     def power_per_channel(self, colour: Operand, exponent: Operand, *, label: str = "") -> Socket:
         """colour^exponent per channel: one Vector Math Power (a scalar exponent socket is broadcast by its link)."""
-        exponent = exponent if isinstance(exponent, bpy.types.NodeSocket) or _is_vector(exponent) else (exponent,) * 3
+        exponent = exponent if isinstance(exponent, bpy.types.NodeSocket) or is_vector(exponent) else (exponent,) * 3
         return self._vector_math("POWER", colour, exponent, label=label)
 
     def mix(self, factor: Operand, a: Operand, b: Operand, *, label: str = "") -> Socket:
@@ -457,7 +467,7 @@ class CompositorBuilder(GraphBuilder):
         parts = (r, g, b)
         if not any(isinstance(value, bpy.types.NodeSocket) for value in parts):
             return tuple(float(value) for value in parts)
-        if isinstance(r, bpy.types.NodeSocket) and not _is_vector(r) and r == g and r == b:
+        if isinstance(r, bpy.types.NodeSocket) and not is_vector(r) and r == g and r == b:
             return r
         node = self.node(COMPOSITOR_COMBINE_XYZ, label=label)
         for socket, value in zip(node.inputs, parts):
@@ -511,6 +521,26 @@ class CompositorBuilder(GraphBuilder):
         self._feed(node, node.inputs["Image"], self._image_node.outputs["Image"])
         self._feed(node, node.inputs["UV"], uv.outputs[0])
         return node.outputs["Image"]
+
+    def neighbour(self, value: Operand, dx: int, dy: int, *, label: str = "") -> Socket | float | tuple:
+        """``value`` at the pixel ``dx`` to the right and ``dy`` up: a Translate node by whole pixels, nearest texel,
+        0 beyond the image (4.5: ``interpolation`` and ``wrap_axis``; 5.0: the Interpolation and Extension inputs).
+        A constant is its own neighbour; a scalar goes through as a colour's first channel and comes back so."""
+        if not isinstance(value, bpy.types.NodeSocket):
+            return value
+        if dx == 0 and dy == 0:
+            return value
+        scalar = not is_vector(value)
+        node = self.node("CompositorNodeTranslate", label=label)
+        if "Interpolation" in node.inputs:
+            node.inputs["Interpolation"].default_value = "Nearest"
+            node.inputs["Extension X"].default_value = node.inputs["Extension Y"].default_value = "Clip"
+        else:
+            node.interpolation, node.wrap_axis, node.use_relative = "NEAREST", "NONE", False
+        self._feed(node, node.inputs["Image"], self.combine(value, 0.0, 0.0) if scalar else value)
+        self._feed(node, node.inputs["X"], float(-dx))
+        self._feed(node, node.inputs["Y"], float(-dy))
+        return self.separate(node.outputs["Image"])[0] if scalar else node.outputs["Image"]
 
     def attribute(self, name: str, *, attribute_type: str = "VIEW_LAYER", output: str = "Color",
                   label: str = ""):
@@ -584,7 +614,7 @@ class ArrayBuilder(GraphBuilder):
 
     @staticmethod
     def _channels(value: Operand) -> tuple:
-        return tuple(value) if _is_vector(value) else (value, value, value)
+        return tuple(value) if is_vector(value) else (value, value, value)
 
     def _vector_math(self, operation: str, *operands: Operand, label: str = "") -> tuple:
         return self._per_component(operation, *operands, label=label)
@@ -594,7 +624,7 @@ class ArrayBuilder(GraphBuilder):
         return tuple(self._math(operation, *(parts[c] for parts in split)) for c in range(3))
 
     def _arithmetic(self, operation: str, a: Operand, b: Operand, label: str):
-        if _is_vector(a) or _is_vector(b):
+        if is_vector(a) or is_vector(b):
             return self._per_component(operation, a, b)
         return self._math(operation, a, b)
 
@@ -605,12 +635,12 @@ class ArrayBuilder(GraphBuilder):
         return self._arithmetic("MULTIPLY", a, -1.0, label)
 
     def multiply_add(self, a: Operand, b: Operand, c: Operand, *, label: str = ""):
-        if any(_is_vector(v) for v in (a, b, c)):
+        if any(is_vector(v) for v in (a, b, c)):
             return self._per_component("MULTIPLY_ADD", a, b, c)
         return self._math("MULTIPLY_ADD", a, b, c)
 
     def abs(self, a: Operand, *, label: str = ""):
-        return self._per_component("ABSOLUTE", a) if _is_vector(a) else self._math("ABSOLUTE", a)
+        return self._per_component("ABSOLUTE", a) if is_vector(a) else self._math("ABSOLUTE", a)
 
     def dot(self, a: Operand, b: Operand, *, label: str = ""):
         a, b = self._channels(a), self._channels(b)
@@ -658,7 +688,7 @@ class ArrayBuilder(GraphBuilder):
     @staticmethod
     def array(value) -> np.ndarray:
         """A result as one float32 array: a vector or colour (N, 3) (components stacked), a scalar (N,)."""
-        if _is_vector(value):
+        if is_vector(value):
             parts = np.broadcast_arrays(*(np.asarray(v, dtype=np.float32) for v in value))
             return np.stack(parts, axis=-1)
         return np.asarray(value, dtype=np.float32)
@@ -686,6 +716,21 @@ class ArrayBuilder(GraphBuilder):
 
         return tuple(gamma(c) for c in self._channels(colour))
 
+    def neighbour(self, value: Operand, dx: int, dy: int, *, label: str = ""):
+        """``value`` at the pixel ``dx`` to the right and ``dy`` up of each pixel of (height, width) arrays (row 0 at
+        the bottom, as the compositor's images), 0 beyond the image; a constant is its own neighbour."""
+        if is_vector(value):
+            return tuple(self.neighbour(part, dx, dy) for part in value)
+        array = np.asarray(value, dtype=np.float32)
+        if array.ndim < 2:
+            return array
+        shifted = np.zeros_like(array)
+        height, width = array.shape[:2]
+        rows = slice(max(dy, 0), height + min(dy, 0)), slice(max(-dy, 0), height + min(-dy, 0))
+        columns = slice(max(dx, 0), width + min(dx, 0)), slice(max(-dx, 0), width + min(-dx, 0))
+        shifted[rows[1], columns[1]] = array[rows[0], columns[0]]
+        return shifted
+
     def shading_input(self, name: str, *, label: str = ""):
         if name not in SHADING_INPUTS:
             raise KeyError(f"unknown shading input {name!r}; known: {', '.join(SHADING_INPUTS)}")
@@ -694,8 +739,8 @@ class ArrayBuilder(GraphBuilder):
     def attribute(self, name: str, *, attribute_type: str = "VIEW_LAYER", output: str = "Color", label: str = ""):
         value = self.parameters.get(name, np.float32(0.0))
         if output == "Fac":
-            return (value[0] + value[1] + value[2]) / np.float32(3.0) if _is_vector(value) else value
-        return value if _is_vector(value) else (value, value, value)
+            return (value[0] + value[1] + value[2]) / np.float32(3.0) if is_vector(value) else value
+        return value if is_vector(value) else (value, value, value)
 
     def texel(self, image, u: Operand, v: Operand, *, label: str = "") -> tuple:
         """The image's texel at (u, v), unfiltered with extended edges (Closest), as Cycles samples it; black where

@@ -74,8 +74,7 @@ REBUILD: dict[stamps.GroupKind, Callable[[bpy.types.NodeTree, str], None]] = {
     stamps.SKY_LIGHTING: _rebuild_sky_lighting,
     stamps.SKY_VIEW: lambda tree, key: sky_view.build_sky_view(tree, SkyFeatures.from_key(key)),
     stamps.COMPOSITE: lambda tree, key: composite.build_composite_group(tree),
-    stamps.PER_PIXEL: lambda tree, key: per_pixel.build_per_pixel_composite(
-        tree, AerialFeatures.from_key(key), composite.ensure_composite_group()),
+    stamps.PER_PIXEL: lambda tree, key: per_pixel.build_per_pixel_composite(tree, AerialFeatures.from_key(key)),
     stamps.SURFACE_OUTPUTS: _rebuild_outputs,
     stamps.SURFACE: _rebuild_surface,
     stamps.IN_RENDER_SURFACE: lambda tree, key: in_render.build_surface_group(

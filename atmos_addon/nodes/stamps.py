@@ -30,15 +30,7 @@ class GroupKind:
     per_world: bool = False
 
 
-#: Versions: aerial 2 lengths clamped to the virtual sky dome, 3 the layered dome, 4 powers and no phi1, 5 Precise
-#: distances taken at most to the top of the atmosphere; sky 2 the layered dome, 3 powers and no phi1 (the aerial
-#: group's terms); surface 2 the Per Pixel mode's outputs, 3 stamped by kind with its modes as features, 4 one node of
-#: the outputs group (which holds the AOV outputs); Per Pixel 4, 5 Vector Math on colours;
-#: In-Render 3 the dome's square roots by one Gamma node; aerial 6, sky 4, sky view 2, Per Pixel 6: the table samples,
-#: the distance to the top, phi1, the sky's path length and the sun's disk as parts (:mod:`.parts`); composite 2, Per
-#: Pixel 7: the render's alpha bounds the coverage (a holdout object's hole stays a hole); aerial 7, sky 5, Per Pixel
-#: 8: the Precise table's distance columns start at each row's vertical ray, spaced by a power from 3 at the ground to
-#: 2 at the top (stop 55; :func:`~atmos_addon.physics.precise.cell_distances`).
+#: Each kind's version is bumped whenever its builder's output changes (CHANGELOG.md says what changed).
 AERIAL = GroupKind("Atmos Aerial Perspective", "ShaderNodeTree", 7)
 AERIAL_SEGMENT = GroupKind("Atmos Aerial Perspective (Ray Segment)", "ShaderNodeTree", 6)
 SKY = GroupKind("Atmos Sky", "ShaderNodeTree", 5)
@@ -47,9 +39,9 @@ SKY_LIGHTING = GroupKind("Atmos Sky Lighting", "ShaderNodeTree", 1, per_world=Tr
 SKY_VIEW = GroupKind("Atmos Sky View", "ShaderNodeTree", 2)
 #: The materials' group (one node of the outputs group) and its outputs (:mod:`.surface`).
 SURFACE = GroupKind("Atmos Surface AOVs", "ShaderNodeTree", 4)
-SURFACE_OUTPUTS = GroupKind("Atmos AOV Outputs", "ShaderNodeTree", 1)
-COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 2)
-PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 8)
+SURFACE_OUTPUTS = GroupKind("Atmos AOV Outputs", "ShaderNodeTree", 2)
+COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 3)
+PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 9)
 IN_RENDER_SURFACE = GroupKind("Atmos In-Render Surface", "ShaderNodeTree", 3)
 IN_RENDER_SKY = GroupKind("Atmos In-Render Sky", "ShaderNodeTree", 3)
 #: A part: a piece of an equation built once as its own group and instanced by the groups above (:mod:`.parts`;

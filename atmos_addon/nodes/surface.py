@@ -2,10 +2,12 @@
 """The "Atmos Surface AOVs" group: the one group node every managed material carries (the AOV modes).
 
 It holds one node, the "Atmos AOV Outputs" group, fed the material's Opacity and Transparency. Inside that: the
-"Atmos Aerial Perspective" group (outputs Transmittance and Inscattering), AOV outputs ``atmos_transmittance`` and
-``atmos_inscattering`` (colour) and ``atmos_coverage`` (value), each weighted by the surface's opacity
-alpha = Opacity * (1 - Transparency); for the Per Pixel mode, ``atmos_distance`` (alpha times the camera distance in
-km) and ``atmos_view`` (alpha times the unit view direction) instead of the first two and the aerial group. The
+"Atmos Aerial Perspective" group (outputs Transmittance and Inscattering), AOV outputs ``atmos_transmittance``,
+its square and cube ``atmos_transmittance2`` and ``atmos_transmittance3``, ``atmos_inscattering`` (colour) and
+``atmos_coverage`` (value), each weighted by the surface's opacity alpha = Opacity * (1 - Transparency); for the
+Per Pixel mode, ``atmos_distance`` (alpha times the camera distance in km), ``atmos_view`` (alpha times the unit
+view direction) and ``atmos_moments`` (alpha (q, q^2, q^3), q = s / (s + s_0)) instead of those and the aerial
+group. The squares and cubes let the compositor tell two surfaces in one pixel apart (``composite.two_point``). The
 outputs group holds the outputs of the modes the file's enabled scenes use (its features key, e.g.
 "COMPOSITOR,PER_PIXEL"); switching the mode rebuilds it, so the materials are not edited.
 
@@ -22,7 +24,8 @@ import contextlib
 
 import bpy
 
-from ..plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_TRANSMITTANCE, AOV_VIEW
+from ..plan import (AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MOMENTS, AOV_TRANSMITTANCE,
+                    AOV_TRANSMITTANCE_CUBED, AOV_TRANSMITTANCE_SQUARED, AOV_VIEW)
 from . import stamps
 from .parameters import METRES_PER_UNIT
 
@@ -32,6 +35,9 @@ OUTPUTS_GROUP = stamps.SURFACE_OUTPUTS.name
 OUTPUTS_NODE = "AOV Outputs"
 #: The Per Pixel mode's distance AOV holds alpha s / this (s in m): km.
 DISTANCE_AOV_UNIT_M = 1000.0
+#: s_0 of the Per Pixel mode's moments, q = s / (s + s_0), m: q resolves the distances over which the haze changes
+#: (a few km to a few hundred) in [0, 1), where Eevee's half-float AOVs keep 11 bits.
+MOMENT_DISTANCE_M = 10000.0
 
 
 def modes_key(evaluations) -> str:
@@ -85,15 +91,14 @@ def build_outputs_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None
         aerial.location = (-500, 0)
         per_sample = (("Transmittance", AOV_TRANSMITTANCE), ("Inscattering", AOV_INSCATTERING))
     for index, (output, aov_name) in enumerate(per_sample):
-        scale = nodes.new("ShaderNodeVectorMath")
-        scale.operation = "SCALE"
-        scale.location = (150, -180.0 * index)
-        links.new(aerial.outputs[output], scale.inputs[0])
-        links.new(alpha.outputs[0], scale.inputs["Scale"])
-        aov = nodes.new("ShaderNodeOutputAOV")
-        aov.aov_name = aov_name
-        aov.location = (400, -180.0 * index)
-        links.new(scale.outputs[0], aov.inputs["Color"])
+        _weighted_aov(nodes, links, aerial.outputs[output], alpha.outputs[0], aov_name, (150, -180.0 * index))
+    if per_sample:
+        # T^2 and T^3 (alpha-weighted like T): the moments the compositor reads two surfaces' transmittances from.
+        square = _vector_math(nodes, links, "MULTIPLY", aerial.outputs["Transmittance"],
+                              aerial.outputs["Transmittance"], (-100, 250))
+        cube = _vector_math(nodes, links, "MULTIPLY", square, aerial.outputs["Transmittance"], (-100, 400))
+        _weighted_aov(nodes, links, square, alpha.outputs[0], AOV_TRANSMITTANCE_SQUARED, (150, 250))
+        _weighted_aov(nodes, links, cube, alpha.outputs[0], AOV_TRANSMITTANCE_CUBED, (150, 400))
     coverage = nodes.new("ShaderNodeOutputAOV")
     coverage.aov_name = AOV_COVERAGE
     coverage.location = (400, -400)
@@ -103,8 +108,31 @@ def build_outputs_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None
     stamps.stamp(tree, stamps.SURFACE_OUTPUTS, modes_key(evaluations))
 
 
+def _vector_math(nodes, links, operation: str, a, b, location):
+    node = nodes.new("ShaderNodeVectorMath")
+    node.operation = operation
+    node.location = location
+    links.new(a, node.inputs[0])
+    links.new(b, node.inputs[1])
+    return node.outputs[0]
+
+
+def _weighted_aov(nodes, links, colour, alpha, aov_name: str, location) -> None:
+    """An AOV output of ``colour`` times the opacity ``alpha``."""
+    scale = nodes.new("ShaderNodeVectorMath")
+    scale.operation = "SCALE"
+    scale.location = location
+    links.new(colour, scale.inputs[0])
+    links.new(alpha, scale.inputs["Scale"])
+    aov = nodes.new("ShaderNodeOutputAOV")
+    aov.aov_name = aov_name
+    aov.location = (location[0] + 250, location[1])
+    links.new(scale.outputs[0], aov.inputs["Color"])
+
+
 def _add_per_pixel_outputs(nodes, links, alpha) -> None:
-    """The Per Pixel mode's AOVs: alpha s / 1000 (s the camera distance in m) and alpha v (v the view direction)."""
+    """The Per Pixel mode's AOVs: alpha s / 1000 (s the camera distance in m), alpha v (v the view direction) and
+    alpha (q, q^2, q^3) with q = s / (s + s_0)."""
     camera = nodes.new("ShaderNodeCameraData")
     camera.location = (-500, -550)
     metres = nodes.new("ShaderNodeAttribute")
@@ -146,6 +174,36 @@ def _add_per_pixel_outputs(nodes, links, alpha) -> None:
     view_aov.aov_name = AOV_VIEW
     view_aov.location = (400, -760)
     links.new(view.outputs[0], view_aov.inputs["Color"])
+    metres_away = nodes.new("ShaderNodeMath")
+    metres_away.operation = "MULTIPLY"
+    metres_away.location = (-250, -1000)
+    links.new(camera.outputs["View Distance"], metres_away.inputs[0])
+    links.new(metres.outputs["Fac"], metres_away.inputs[1])
+    beyond = nodes.new("ShaderNodeMath")
+    beyond.operation = "ADD"
+    beyond.inputs[1].default_value = MOMENT_DISTANCE_M
+    beyond.location = (-50, -1050)
+    links.new(metres_away.outputs[0], beyond.inputs[0])
+    q = nodes.new("ShaderNodeMath")
+    q.operation = "DIVIDE"
+    q.location = (150, -1000)
+    links.new(metres_away.outputs[0], q.inputs[0])
+    links.new(beyond.outputs[0], q.inputs[1])
+    powers = nodes.new("ShaderNodeCombineXYZ")
+    powers.location = (400, -1000)
+    square = nodes.new("ShaderNodeMath")
+    square.operation = "MULTIPLY"
+    square.location = (250, -1100)
+    links.new(q.outputs[0], square.inputs[0])
+    links.new(q.outputs[0], square.inputs[1])
+    cube = nodes.new("ShaderNodeMath")
+    cube.operation = "MULTIPLY"
+    cube.location = (350, -1150)
+    links.new(square.outputs[0], cube.inputs[0])
+    links.new(q.outputs[0], cube.inputs[1])
+    for index, source in enumerate((q, square, cube)):
+        links.new(source.outputs[0], powers.inputs[index])
+    _weighted_aov(nodes, links, powers.outputs[0], alpha, AOV_MOMENTS, (550, -1000))
 
 
 def build_surface_group(tree, outputs_group, evaluations=("COMPOSITOR",)) -> None:

@@ -88,8 +88,7 @@ def mesh_object(name: str, *mats, half_size: float | None = None):
 
 
 #: The AOVs each mode's materials write, in the order the view layer declares them.
-MODE_AOVS = {"COMPOSITOR": ["atmos_transmittance", "atmos_inscattering", "atmos_coverage"],
-             "PER_PIXEL": ["atmos_view", "atmos_coverage", "atmos_distance"]}
+MODE_AOVS = {mode: plan.material_aovs(mode) for mode in plan.AOV_MODES}
 
 
 @pytest.mark.parametrize("mode", ["PER_PIXEL", "COMPOSITOR"])
@@ -265,7 +264,7 @@ def test_enable_disable_enable_is_idempotent(mode) -> None:
     orchestrator.enable_effect(scene)
     assert snapshot(material.node_tree)[1] == first[0][1]
     assert {n[0] for n in snapshot(material.node_tree)[0]} == {n[0] for n in first[0][0]}
-    assert [a.name for a in scene.view_layers[0].aovs] == MODE_AOVS[mode]
+    assert [a.name for a in scene.view_layers[0].aovs] == [name for name, _ in plan.AOVS[mode]]
 
 
 def test_material_added_after_enabling_is_picked_up() -> None:
@@ -520,7 +519,7 @@ def test_per_pixel_mode_composites_the_physics(engine: str, tolerance: float, tm
     orchestrator.enable_effect(scene)
     assert scene.atmos.status_built.startswith("Fast, ") and "per pixel" in scene.atmos.status_built
     layer_aovs = {aov.name for aov in scene.view_layers[0].aovs}
-    assert layer_aovs == {"atmos_coverage", "atmos_distance", "atmos_view"}
+    assert layer_aovs == {name for name, _ in plan.AOVS["PER_PIXEL"]}
     for label, rotation in (("high", (math.radians(30), 0, math.radians(40))), ("low", (math.radians(80), 0, 2.5))):
         sun.rotation_euler = rotation
         bpy.context.view_layer.update()
@@ -534,36 +533,44 @@ def test_per_pixel_names_agree_between_the_materials_and_the_compositor_group() 
     assert (surface.AOV_DISTANCE, surface.AOV_VIEW) == (per_pixel.AOV_DISTANCE, per_pixel.AOV_VIEW)
     assert surface.DISTANCE_AOV_UNIT_M == per_pixel.DISTANCE_AOV_UNIT_M
     assert surface.METRES_PER_UNIT == parameters.METRES_PER_UNIT
-    assert sorted(aov for name, aov, _ in per_pixel.IMAGE_INPUTS if name not in ("Image", "Alpha")) == sorted(
-        name for name, _ in plan.AOVS["PER_PIXEL"])   # Image and Alpha are the render's own passes
+    assert sorted(aov for name, aov, _ in per_pixel.IMAGE_INPUTS if name not in ("Image", "Alpha", "Environment")) == sorted(
+        name for name, _ in plan.AOVS["PER_PIXEL"])   # Image, Alpha and Environment are the render's own passes
 
 
-def test_per_pixel_declares_a_colour_aov_first_and_reorders_a_file_that_did_not() -> None:
-    """Blender 5.2's Eevee writes 0 into a view layer's first AOV when it is a Value AOV (measured in a GUI 5.2.2,
-    tools/verify_viewport.py: Per Pixel rendered as if the effect were off). The Per Pixel AOVs start with the colour
-    one, and Refresh reinstalls a file saved with the coverage first, restoring the user's compositor links."""
+def test_per_pixel_declares_its_colour_aovs_first_and_reorders_a_file_that_did_not() -> None:
+    """Eevee writes 0 into a Value AOV that a colour AOV follows in the view layer (measured with bpy 5.2.3; with
+    the coverage first, Per Pixel rendered as if the effect were off). The colour AOVs come first, and Refresh
+    reinstalls a file saved with another order (or without this version's AOVs), restoring the user's compositor
+    links."""
     scene = bpy.context.scene
     mesh_object("Thing", user_material())
     scene.atmos.render_mode = "PER_PIXEL"
     orchestrator.enable_effect(scene)
     layer = scene.view_layers[0]
-    assert [(aov.name, aov.type) for aov in layer.aovs] == [("atmos_view", "COLOR"), ("atmos_coverage", "VALUE"),
-                                                             ("atmos_distance", "VALUE")]
-    assert not compositor.value_aov_leads(scene, scene[compositor.STATE_KEY].to_dict())
+    assert [(aov.name, aov.type) for aov in layer.aovs] == list(plan.AOVS["PER_PIXEL"])
+    kinds = [aov.type for aov in layer.aovs]
+    assert kinds == sorted(kinds, key=lambda kind: kind == "VALUE")   # every colour AOV before every value AOV
+    assert not compositor.aovs_out_of_order(scene, scene[compositor.STATE_KEY].to_dict(), plan.AOVS["PER_PIXEL"])
     view = layer.aovs["atmos_view"]   # what an earlier version declared: coverage, distance, view
     layer.aovs.remove(view)
     view = layer.aovs.add()
     view.name, view.type = "atmos_view", "COLOR"
-    assert compositor.value_aov_leads(scene, scene[compositor.STATE_KEY].to_dict())
+    assert compositor.aovs_out_of_order(scene, scene[compositor.STATE_KEY].to_dict(), plan.AOVS["PER_PIXEL"])
     orchestrator.refresh_effect(scene)
-    assert layer.aovs[0].name == "atmos_view" and len(layer.aovs) == 3
+    assert [(aov.name, aov.type) for aov in layer.aovs] == list(plan.AOVS["PER_PIXEL"])
     tree = compositor.current_tree(scene)
     node = tree.nodes[compositor.COMPOSITE_NODE]
     linked = {link.to_socket.name: link.from_socket.name for link in tree.links if link.to_node == node}
     assert linked == {"Image": "Image", "Coverage": "atmos_coverage", "Distance": "atmos_distance",
-                      "View": "atmos_view", "Alpha": "Alpha"}
+                      "View": "atmos_view", "Alpha": "Alpha", "Moments": "atmos_moments",
+                      "Environment": compositor.layer_output(linked_layers(node), "Environment").name}
     orchestrator.disable_effect(scene)
-    assert len(layer.aovs) == 0
+    assert len(layer.aovs) == 0 and not layer.use_pass_environment
+
+
+def linked_layers(node):
+    """The Render Layers node that feeds ``node``'s Image."""
+    return node.inputs["Image"].links[0].from_node
 
 
 def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() -> None:
@@ -583,11 +590,11 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     assert node.node_tree.name == "Atmos Aerial Composite (Per Pixel)"
     assert compositor.installed_evaluation(scene) == "PER_PIXEL"
     drivers = [curve for curve in tree.animation_data.drivers if curve.data_path.startswith('nodes["Atmos Aerial')]
-    assert len(drivers) == 3 * 7 + 2   # 7 colour/vector parameters, 2 scalars
+    assert len(drivers) == 3 * 7 + 2 + 1   # 7 colour/vector parameters, 2 scalars, Film Transparent
     assert snapshot(user.node_tree) == material_nodes
-    assert {aov.name for aov in scene.view_layers[0].aovs} == {"atmos_coverage", "atmos_distance", "atmos_view"}
+    assert {aov.name for aov in scene.view_layers[0].aovs} == {name for name, _ in plan.AOVS["PER_PIXEL"]}
     group = bpy.data.node_groups[materials.SURFACE_GROUP]   # its outputs rebuilt in place: only this mode's
-    assert surface.aov_names(group) == {"atmos_coverage", "atmos_distance", "atmos_view"}
+    assert surface.aov_names(group) == set(plan.material_aovs("PER_PIXEL"))
     outputs = bpy.data.node_groups[surface.OUTPUTS_GROUP]
     assert surface.outputs_node(group).node_tree == outputs
     assert not any(n.bl_idname == "ShaderNodeGroup" for n in outputs.nodes)
@@ -597,8 +604,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     other.collection.objects.link(bpy.data.objects["Thing"])
     other.atmos.render_mode = "COMPOSITOR"
     orchestrator.enable_effect(other)
-    assert surface.aov_names(group) == {
-        "atmos_coverage", "atmos_distance", "atmos_view", "atmos_transmittance", "atmos_inscattering"}
+    assert surface.aov_names(group) == set(plan.material_aovs("PER_PIXEL")) | set(plan.material_aovs("COMPOSITOR"))
     assert bpy.data.node_groups["Atmos Aerial Perspective"].users == 1
     orchestrator.disable_effect(other)
     bpy.data.scenes.remove(other)
@@ -611,10 +617,10 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
     scene.atmos.render_mode = "COMPOSITOR"
     node = compositor.current_tree(scene).nodes[compositor.COMPOSITE_NODE]
     assert node.node_tree.name == compositor.GROUP_NAME
-    assert {aov.name for aov in scene.view_layers[0].aovs} == {"atmos_coverage", "atmos_transmittance",
-                                                                 "atmos_inscattering"}
-    animation = compositor.current_tree(scene).animation_data
-    assert animation is None or not animation.drivers
+    assert {aov.name for aov in scene.view_layers[0].aovs} == {name for name, _ in plan.AOVS["COMPOSITOR"]}
+    animation = compositor.current_tree(scene).animation_data   # the Compositor mode's node: Film Transparent alone
+    assert [curve.data_path for curve in animation.drivers] == [
+        node.inputs[compositor.FILM_TRANSPARENT].path_from_id("default_value")]
     assert "Atmos Aerial Composite (Per Pixel)" not in bpy.data.node_groups   # unused now: not left in the file
     scene.atmos.render_mode = "PER_PIXEL"
     orchestrator.disable_effect(scene)
@@ -650,7 +656,7 @@ def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_ag
     assert group[stamps.VERSION_KEY] == stamps.PER_PIXEL.version and bpy.data.node_groups[per_pixel.GROUP_NAME] == group
     node = tree.nodes[compositor.COMPOSITE_NODE]
     drivers = [c for c in tree.animation_data.drivers if c.data_path.startswith(f'nodes["{node.name}"]')]
-    assert len(drivers) == 3 * 7 + 2 and all(c.driver.is_valid for c in drivers)   # 7 vectors, 2 numbers
+    assert len(drivers) == 3 * 7 + 2 + 1 and all(c.driver.is_valid for c in drivers)   # 7 vectors, 2 numbers, film
     linked = {link.to_socket.name for link in tree.links if link.to_node == node}
     assert linked == {name for name, _, _ in per_pixel.IMAGE_INPUTS}   # the render passes stay wired
 
@@ -685,9 +691,12 @@ def test_a_per_pixel_group_saved_with_balanced_inputs_keeps_its_links_and_drops_
     orchestrator.update(scene)
     assert [s.name for s in node.inputs if s.name in ("Camera z (units)", "Origin Altitude (m)")] == []
     drivers = [c for c in tree.animation_data.drivers if c.data_path.startswith(f'nodes["{node.name}"]')]
-    assert len(drivers) == 3 * 7 + 2 and all(c.driver.is_valid for c in drivers)
+    assert len(drivers) == 3 * 7 + 2 + 1 and all(c.driver.is_valid for c in drivers)   # and Film Transparent
     for curve in drivers:
         socket = tree.path_resolve(curve.data_path.rsplit(".", 1)[0])
+        if socket.name == compositor.FILM_TRANSPARENT:
+            assert curve.driver.variables[0].targets[0].data_path == "render.film_transparent"
+            continue
         name = next(prop for prop, socket_name, _ in per_pixel.PARAMETER_SOCKETS if socket_name == socket.name)
         assert curve.driver.variables[0].targets[0].data_path.startswith(f'["{name}"]'), (socket.name, curve)
     linked = {link.to_socket.name for link in tree.links if link.to_node == node}

@@ -228,5 +228,5 @@ def test_linked_assets_without_the_nodes_are_reported_with_what_to_do(tmp_path):
     report = api.enable(_scene("linked", per_pixel), **OPTIONS, render_mode="COMPOSITOR")
     reasons = dict(report.skipped)
     assert set(reasons) == {"Asset 1", "Asset 2"}
-    assert all("Atmos nodes of another mode (no atmos_inscattering, atmos_transmittance)" in reason
+    assert all("Atmos nodes of another mode (no atmos_inscattering, atmos_transmittance, atmos_transmittance2, atmos_transmittance3)" in reason
                for reason in reasons.values()), reasons

@@ -100,7 +100,7 @@ def _assert_balanced_upgraded_to_fast(scene) -> None:
     linked = {link.to_socket.name for link in tree.links if link.to_node == node}
     assert linked == {name for name, _, _ in per_pixel.IMAGE_INPUTS}   # the interface shrank, the links stayed
     drivers = [c for c in tree.animation_data.drivers if c.data_path.startswith(f'nodes["{node.name}"].inputs[')]
-    assert len(drivers) == sum(size for _, _, size in per_pixel.PARAMETER_SOCKETS)
+    assert len(drivers) == sum(size for _, _, size in per_pixel.PARAMETER_SOCKETS) + 1   # and Film Transparent's
     assert all(c.driver.is_valid for c in drivers)
 
 

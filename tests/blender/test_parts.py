@@ -91,7 +91,10 @@ def test_mode_switch_and_disable_leave_no_part_behind():
     assert any(tree.bl_idname == "CompositorNodeTree" for tree in _part_groups())   # the Per Pixel group's
     scene.atmos.render_mode = "COMPOSITOR"
     assert not [tree.name for tree in _part_groups() if tree.users == 0]
-    assert not any(tree.bl_idname == "CompositorNodeTree" for tree in _part_groups())
+    composite = bpy.data.node_groups[stamps.COMPOSITE.name]   # the Per Pixel group's parts gone, the composite's kept
+    assert {tree for tree in _part_groups() if tree.bl_idname == "CompositorNodeTree"} == parts.used_parts(composite)
+    assert not any("Per Pixel" in tree.name or tree.name.startswith("Atmos Two Point (Compositor)")
+                   for tree in _part_groups())
     scene.atmos.render_mode = "PER_PIXEL"
     api.disable(scene)
     assert _part_groups() == []

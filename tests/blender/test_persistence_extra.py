@@ -136,7 +136,7 @@ def test_the_per_pixel_compositor_group_is_watched_and_reset_keeps_the_mode() ->
     per_pixel = bpy.data.node_groups[group_integrity.PER_PIXEL]
     outputs = bpy.data.node_groups[group_integrity.SURFACE_OUTPUTS]
     aovs_before = sorted(n.aov_name for n in outputs.nodes if n.bl_idname == "ShaderNodeOutputAOV")
-    assert aovs_before == ["atmos_coverage", "atmos_distance", "atmos_view"]
+    assert aovs_before == ["atmos_coverage", "atmos_distance", "atmos_moments", "atmos_view"]
     n_nodes = len(per_pixel.nodes)
     assert group_integrity.edited_groups(force=True) == []
     per_pixel.links.remove(per_pixel.links[5])

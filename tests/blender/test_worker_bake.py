@@ -89,7 +89,7 @@ def test_the_worker_bakes_what_the_synchronous_bake_bakes(addon, monkeypatch):
     assert not precise_tables.pending()
 
 
-def test_an_atmosphere_edit_shows_the_preview_first_then_the_full_table(addon, monkeypatch):
+def test_an_atmosphere_edit_shows_the_preview_first_then_the_full_table(addon, monkeypatch, without_table_store):
     """After an atmosphere edit the worker bakes the tile from the preview tables first (a fifth of the tables'
     build), which is written at once, its key marked as a preview, and then the full tile over it: the synchronous
     bake's to the bit. A sun move afterwards (the tables built) has no preview. Here the full bake waits until the

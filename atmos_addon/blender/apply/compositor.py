@@ -1,24 +1,17 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The compositor half of aerial perspective: AOV declarations and one inserted group node.
+"""The compositor half of aerial perspective: AOV and pass declarations and one inserted group node.
 
-Per pixel the materials leave three AOV sums (see :mod:`.materials`): ``T = sum a_i T_i``,
-``L = sum a_i L_i`` and the coverage ``C = sum a_i`` over the surfaces that wrote (alpha a_i,
-1 for opaque surfaces, averaged over the pixel's samples). The composite is
-
-    k = max(C, 1)
-    out = Image * (T + max(1 - C, 0)) / k + L / k
-
-with C first bounded by the render's alpha (``nodes.composite``: a holdout collection's hole stays a hole):
-
-- a fully covered pixel (C = 1): ``Image * T + L`` -- exactly L0 F_ex + L_in (Hoffman & Preetham eq. 16);
-- a sky pixel (nothing wrote, every AOV 0): ``Image`` untouched;
-- a silhouette pixel covering a fraction c of a surface: the sky part passes through, the surface
-  part gets its atmosphere (first order: the sky's share of the pixel is scaled by T as well);
-- a pixel where a cut-out and the surface behind it both wrote (C > 1): a coverage-weighted mean.
+Per pixel the materials leave AOV sums over the surfaces that wrote (see :mod:`.materials`; alpha a_i, 1 for
+opaque surfaces, averaged over the pixel's samples): the coverage ``C = sum a_i``, and in the Compositor mode
+``T = sum a_i T_i``, its square and cube, ``L = sum a_i L_i``, and the render the sky it shows (the Environment
+pass, switched on in every view layer). The group (``nodes.composite``) combines them: the sky passes untouched, a
+pixel of one surface gets exactly L0 F_ex + L_in (Hoffman & Preetham eq. 16), a holdout's hole stays a hole, and a
+pixel of two surfaces is corrected for the product of their differences. Its Film Transparent input is driven from
+the scene's Film > Transparent (the render then shows no sky).
 
 Per Pixel evaluation (``render_mode`` "PER_PIXEL") inserts ``nodes.per_pixel``'s group instead: the
-materials write the coverage, distance and view direction, and the compositor evaluates T and L from them
-once per pixel before the same combination. Its parameter inputs are driven from the scene's properties.
+materials write the coverage, distance, its moments and the view direction, and the compositor evaluates T and L
+from them once per pixel before the same combination. Its parameter inputs are driven from the scene's properties.
 
 The node tree is inserted non-destructively: the links that left Render Layers.Image are moved to
 leave our group's output; removing the group puts them back. What must be restored (the previous
@@ -35,7 +28,8 @@ import warnings
 import bpy
 
 from ... import nodes
-from ...plan import AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_TRANSMITTANCE, AOV_VIEW, AOVS
+from ...plan import (AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_MOMENTS, AOV_TRANSMITTANCE,
+                     AOV_TRANSMITTANCE_CUBED, AOV_TRANSMITTANCE_SQUARED, AOV_VIEW, AOVS, ENVIRONMENT_PASS)
 from .. import drivers
 from ..scene_reading import rendered_view_layers
 from ..tree_edits import TAG
@@ -81,12 +75,22 @@ def declare_aovs(scene, state: dict, aovs=AOVS["COMPOSITOR"]) -> None:
     state["added_aovs"] = added
 
 
-def value_aov_leads(scene, state: dict) -> bool:
-    """True when a view layer's first AOV is a Value AOV that Atmos added (a file saved before Per Pixel's AOVs put
-    the colour AOV first): Blender 5.2's Eevee would write 0 into it."""
+def aovs_out_of_order(scene, state: dict, aovs) -> bool:
+    """True when a view layer lacks one of ``aovs`` or holds a colour AOV after a Value AOV that Atmos added (a file
+    saved by an Atmos that declared fewer or other AOVs): Eevee writes 0 into a Value AOV that a colour AOV follows
+    (measured in Blender 5.2.3: with the view layer's AOVs colour, value, value, colour, the first value reads 0; with
+    every colour AOV first, each reads what was written)."""
     added = set(state.get("added_aovs", []))
-    return any(len(layer.aovs) and layer.aovs[0].type == "VALUE" and f"{layer.name}\t{layer.aovs[0].name}" in added
-               for layer in scene.view_layers)
+    for layer in scene.view_layers:
+        names = {aov.name for aov in layer.aovs}
+        if any(name not in names for name, _ in aovs):
+            return True
+        ours_seen = False
+        for aov in layer.aovs:
+            if aov.type != "VALUE" and ours_seen:
+                return True
+            ours_seen = ours_seen or (aov.type == "VALUE" and f"{layer.name}\t{aov.name}" in added)
+    return False
 
 
 def remove_aovs(scene, state: dict) -> None:
@@ -167,23 +171,97 @@ def shown_view_layer(scene):
 
 #: The Render Layers output that bounds the coverage (:mod:`atmos_addon.nodes.composite`).
 ALPHA = "Alpha"
+#: The Environment pass's Render Layers output in Blender 4.5 (5.0 names it :data:`~atmos_addon.plan.ENVIRONMENT_PASS`).
+ENVIRONMENT_4_5 = "Env"
+#: The group nodes' input driven from the scene's Film > Transparent.
+FILM_TRANSPARENT = "Film Transparent"
 
 
-def link_alpha(scene) -> None:
-    """Feed the render's alpha to each Atmos group node whose Alpha input nothing feeds (one installed by an Atmos
-    whose group had no such input), from the Render Layers node that feeds its Image."""
+def sources(evaluation: str) -> tuple[tuple[str, str], ...]:
+    """(Render Layers output, group input) of every input the ``evaluation``'s group node reads from the render."""
+    shared = ((ALPHA, "Alpha"), (ENVIRONMENT_PASS, "Environment"))
+    if evaluation == "PER_PIXEL":
+        return ((AOV_COVERAGE, "Coverage"), (AOV_DISTANCE, "Distance"), (AOV_VIEW, "View"),
+                (AOV_MOMENTS, "Moments")) + shared
+    return ((AOV_TRANSMITTANCE, "Transmittance"), (AOV_INSCATTERING, "Inscattering"), (AOV_COVERAGE, "Coverage"),
+            (AOV_TRANSMITTANCE_SQUARED, "Transmittance Squared"),
+            (AOV_TRANSMITTANCE_CUBED, "Transmittance Cubed")) + shared
+
+
+def layer_output(layer_node, name: str):
+    """The Render Layers node's output ``name`` (the Environment pass under either of its names), or None."""
+    output = layer_node.outputs.get(name)
+    if output is None and name == ENVIRONMENT_PASS:
+        output = layer_node.outputs.get(ENVIRONMENT_4_5)
+    return output
+
+
+def link_inputs(scene) -> None:
+    """Feed each Atmos group node's unfed inputs from the Render Layers node that feeds its Image (a node installed
+    by an Atmos whose group lacked them: the alpha, the sky's pass, the moments), and drive its Film
+    Transparent input."""
     tree = current_tree(scene)
     if tree is None:
         return
     for node in _installed_nodes(scene):
-        target = node.inputs.get(ALPHA)
         image = node.inputs.get("Image")
-        if target is None or target.is_linked or image is None or not image.is_linked:
+        if image is None or not image.is_linked:
             continue
         layer_node = image.links[0].from_node
-        source = layer_node.outputs.get(ALPHA) if layer_node.bl_idname == "CompositorNodeRLayers" else None
-        if source is not None:
-            tree.links.new(source, target)
+        if layer_node.bl_idname != "CompositorNodeRLayers":
+            continue
+        for output_name, input_name in sources(installed_evaluation(scene) or "COMPOSITOR"):
+            target, source = node.inputs.get(input_name), layer_output(layer_node, output_name)
+            if target is not None and source is not None and not target.is_linked:
+                tree.links.new(source, target)
+        _drive_film(node, scene)
+
+
+def _drive_film(node, scene) -> None:
+    """Drive the group node's Film Transparent input from ``scene.render.film_transparent`` (a single-property
+    driver: a farm machine evaluates it without the add-on)."""
+    socket = node.inputs.get(FILM_TRANSPARENT)
+    if socket is None:
+        return
+    animation = node.id_data.animation_data
+    path = socket.path_from_id("default_value")
+    if animation is not None and any(curve.data_path == path for curve in animation.drivers):
+        return
+    driver = drivers.fresh(socket, "default_value").driver
+    drivers.add_variable(driver, "SCENE", scene, "render.film_transparent")
+
+
+# -- the Environment pass ----------------------------------------------------------------
+
+
+def upgrade_passes(scene, evaluation: str) -> None:
+    """Give an installed ``evaluation`` the AOVs (in the order Eevee reads them: :func:`aovs_out_of_order`), the
+    Environment pass and the links its group reads now, where a file saved by an Atmos that read fewer lacks them;
+    the compositor tree's routing stays as the file has it. Cheap where nothing is missing (every update calls it)."""
+    state = scene[STATE_KEY].to_dict()
+    changed = False
+    if aovs_out_of_order(scene, state, AOVS[evaluation]):
+        remove_aovs(scene, state)
+        state["added_aovs"] = []
+        declare_aovs(scene, state, AOVS[evaluation])
+        changed = True
+    changed = declare_environment(scene, state) or changed
+    if changed:
+        scene[STATE_KEY] = state
+    link_inputs(scene)
+
+
+def declare_environment(scene, state: dict) -> bool:
+    """Switch the Environment pass on in every view layer (the sky each pixel shows); remember where we did. True
+    when it switched one on."""
+    switched = list(state.get("environment_passes", []))
+    before = len(switched)
+    for layer in scene.view_layers:
+        if not layer.use_pass_environment:
+            layer.use_pass_environment = True
+            switched.append(layer.name)
+    state["environment_passes"] = switched
+    return len(switched) > before
 
 
 def follow_shown_view_layer(scene) -> None:
@@ -222,7 +300,7 @@ def ensure_per_pixel_group(features):
     per_pixel = nodes.per_pixel
     old = nodes.stamps.local(bpy.data.node_groups, per_pixel.GROUP_NAME)
     before = None if old is None else (len(old.interface.items_tree), old.get(per_pixel.FEATURES_KEY))
-    tree = per_pixel.ensure_per_pixel_group(features, nodes.composite.ensure_composite_group())
+    tree = per_pixel.ensure_per_pixel_group(features)
     if before is not None and (len(tree.interface.items_tree), tree.get(per_pixel.FEATURES_KEY)) != before:
         for scene in bpy.data.scenes:
             for node in _installed_nodes(scene):
@@ -303,11 +381,13 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
         raise ValueError(f"evaluation must be one of {EVALUATIONS}; got {evaluation!r}")
     messages: list[str] = []
     installed = installed_evaluation(scene)
-    if installed == evaluation and not value_aov_leads(scene, scene[STATE_KEY].to_dict()):
+    if installed == evaluation:
         if evaluation == "PER_PIXEL":
             ensure_per_pixel_group(features)
+        else:
+            nodes.composite.ensure_composite_group()   # rebuilt in place when stale (a file of an earlier release)
         follow_shown_view_layer(scene)
-        link_alpha(scene)   # a file saved before the group had its Alpha input
+        upgrade_passes(scene, evaluation)
         return messages  # already installed: idempotent
     if installed is not None:
         uninstall(scene)
@@ -317,6 +397,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
     state["evaluation"] = evaluation
     per_pixel = evaluation == "PER_PIXEL"
     declare_aovs(scene, state, AOVS[evaluation])
+    declare_environment(scene, state)
     group = ensure_per_pixel_group(features) if per_pixel else nodes.composite.ensure_composite_group()
     tree = _scene_tree(scene, state)
     state.setdefault("created_animation_data", tree.animation_data is None)
@@ -341,16 +422,14 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
             tree.links.remove(link)
         tree.links.new(image, combine.inputs["Image"])
         missing = []
-        sources = (((AOV_COVERAGE, "Coverage"), (AOV_DISTANCE, "Distance"), (AOV_VIEW, "View")) if per_pixel else
-                   ((AOV_TRANSMITTANCE, "Transmittance"), (AOV_INSCATTERING, "Inscattering"),
-                    (AOV_COVERAGE, "Coverage"))) + ((ALPHA, "Alpha"),)
         if per_pixel:
             combine.label = "Atmos: aerial perspective (per pixel)"
             _drive_parameters(combine, scene)
-        for aov_name, socket_name in sources:
-            source = layer_node.outputs.get(aov_name)
+        _drive_film(combine, scene)
+        for output_name, socket_name in sources(evaluation):
+            source = layer_output(layer_node, output_name)
             if source is None:
-                missing.append(aov_name)
+                missing.append(output_name)
             else:
                 tree.links.new(source, combine.inputs[socket_name])
         if missing:
@@ -431,6 +510,10 @@ def uninstall(scene) -> None:
     if not GROUP_API and "use_nodes" in state:
         scene.use_nodes = bool(state["use_nodes"])
     remove_aovs(scene, state)
+    for name in state.get("environment_passes", []):
+        layer = scene.view_layers.get(name)
+        if layer is not None:
+            layer.use_pass_environment = False
     if "viewer_images" in state:
         _remove_viewer_images_created_since(state["viewer_images"])
     if "use_compositing" in state:
