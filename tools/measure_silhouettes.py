@@ -27,6 +27,7 @@ import argparse
 import math
 import os
 import platform
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -124,8 +125,11 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_write:
         shown = [a for a in (argv if argv is not None else sys.argv[1:])]
         command = " ".join(["python tools/measure_silhouettes.py", *shown])
-        source = "" if args.source.resolve() == REPO_ROOT else f" (`atmos_addon` from {args.source})"
-        section = (f"## Blender {bpy.app.version_string}{source}\n\n    {command}\n\n{platform.system()}, "
+        commit = subprocess.run(["git", "-C", str(args.source), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True).stdout.strip() or str(args.source)
+        source = "" if args.source.resolve() == REPO_ROOT else f" (`atmos_addon` of {commit})"
+        engines = ", ".join(engine.capitalize() for engine in args.engines.upper().split(","))
+        section = (f"## Blender {bpy.app.version_string}, {engines}{source}\n\n    {command}\n\n{platform.system()}, "
                    f"{os.cpu_count()} cores; {args.width}x{args.height} px, {args.samples} (Cycles) / "
                    f"{args.eevee_samples} (Eevee) samples per pixel.\n\n{table}\n")
         write_doc(section)
