@@ -108,13 +108,22 @@ def build_outputs_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None
     stamps.stamp(tree, stamps.SURFACE_OUTPUTS, modes_key(evaluations))
 
 
-def _vector_math(nodes, links, operation: str, a, b, location):
-    node = nodes.new("ShaderNodeVectorMath")
+def _vector_math(nodes, links, operation: str, a, b, location, *, node_type: str = "ShaderNodeVectorMath"):
+    """A Vector Math (or ``node_type``) node of ``operation`` on ``a`` and ``b`` (sockets, or a number for b)."""
+    node = nodes.new(node_type)
     node.operation = operation
     node.location = location
     links.new(a, node.inputs[0])
-    links.new(b, node.inputs[1])
+    if isinstance(b, bpy.types.NodeSocket):
+        links.new(b, node.inputs[1])
+    else:
+        node.inputs[1].default_value = b
     return node.outputs[0]
+
+
+def _math(nodes, links, operation: str, a, b, location):
+    """A Math node of ``operation`` on ``a`` and ``b``."""
+    return _vector_math(nodes, links, operation, a, b, location, node_type="ShaderNodeMath")
 
 
 def _weighted_aov(nodes, links, colour, alpha, aov_name: str, location) -> None:
@@ -174,35 +183,15 @@ def _add_per_pixel_outputs(nodes, links, alpha) -> None:
     view_aov.aov_name = AOV_VIEW
     view_aov.location = (400, -760)
     links.new(view.outputs[0], view_aov.inputs["Color"])
-    metres_away = nodes.new("ShaderNodeMath")
-    metres_away.operation = "MULTIPLY"
-    metres_away.location = (-250, -1000)
-    links.new(camera.outputs["View Distance"], metres_away.inputs[0])
-    links.new(metres.outputs["Fac"], metres_away.inputs[1])
-    beyond = nodes.new("ShaderNodeMath")
-    beyond.operation = "ADD"
-    beyond.inputs[1].default_value = MOMENT_DISTANCE_M
-    beyond.location = (-50, -1050)
-    links.new(metres_away.outputs[0], beyond.inputs[0])
-    q = nodes.new("ShaderNodeMath")
-    q.operation = "DIVIDE"
-    q.location = (150, -1000)
-    links.new(metres_away.outputs[0], q.inputs[0])
-    links.new(beyond.outputs[0], q.inputs[1])
+    metres_away = _math(nodes, links, "MULTIPLY", camera.outputs["View Distance"], metres.outputs["Fac"], (-250, -1000))
+    beyond = _math(nodes, links, "ADD", metres_away, MOMENT_DISTANCE_M, (-50, -1050))
+    q = _math(nodes, links, "DIVIDE", metres_away, beyond, (150, -1000))      # q = s / (s + 10 km)
+    square = _math(nodes, links, "MULTIPLY", q, q, (250, -1100))
+    cube = _math(nodes, links, "MULTIPLY", square, q, (350, -1150))
     powers = nodes.new("ShaderNodeCombineXYZ")
     powers.location = (400, -1000)
-    square = nodes.new("ShaderNodeMath")
-    square.operation = "MULTIPLY"
-    square.location = (250, -1100)
-    links.new(q.outputs[0], square.inputs[0])
-    links.new(q.outputs[0], square.inputs[1])
-    cube = nodes.new("ShaderNodeMath")
-    cube.operation = "MULTIPLY"
-    cube.location = (350, -1150)
-    links.new(square.outputs[0], cube.inputs[0])
-    links.new(q.outputs[0], cube.inputs[1])
     for index, source in enumerate((q, square, cube)):
-        links.new(source.outputs[0], powers.inputs[index])
+        links.new(source, powers.inputs[index])
     _weighted_aov(nodes, links, powers.outputs[0], alpha, AOV_MOMENTS, (550, -1000))
 
 
