@@ -93,12 +93,19 @@ def set_sun(scene, elevation_deg: float, azimuth_deg: float) -> None:
 
 
 def _evaluate(scene) -> None:
-    """Evaluate ``scene``'s view layers. A script's new or moved objects have their world matrices only once the
-    depsgraph evaluates (until then a sun lamp's reads the identity: a sun at the zenith), and the values that
-    follow the sun are drivers on the lamp, which it evaluates: after a call that moved the sun, what the scene
-    holds is current. The interface evaluates before every operator and redraw; a script does not."""
-    for view_layer in scene.view_layers:
-        view_layer.update()
+    """Bring what the scene holds up to date after a call that moved the sun, as the interface's evaluation before
+    each redraw does. A sun lamp or camera moved by a constraint or a driver has its world matrix only once the
+    depsgraph evaluates (:func:`.blender.scene_reading.needs_evaluation`): the view layers are evaluated then. One
+    moved by its own transform is read without it (evaluating a scene of 5000 objects takes seconds, to read two
+    matrices), and what the drivers on the lamp evaluate to is written directly (:func:`.blender.sync.
+    show_driven_values`); a render evaluates the scene anyway."""
+    from .blender import scene_reading, sync
+
+    if scene_reading.needs_evaluation(scene):
+        for view_layer in scene.view_layers:
+            view_layer.update()
+    elif scene.atmos.enabled:
+        sync.show_driven_values(scene)
 
 
 def _point_sun(scene, elevation_deg: float | None, azimuth_deg: float | None) -> None:
@@ -156,8 +163,9 @@ def enable(scene, preset=None, *, sun_elevation_deg: float | None = None, sun_az
             _point_sun(scene, sun_elevation_deg, sun_azimuth_deg)
         for key, value in overrides.items():
             setattr(scene.atmos, key, value)
+    report = orchestrator.enable_effect(scene)   # evaluates first where a constraint moves the sun or the camera
     _evaluate(scene)
-    return orchestrator.enable_effect(scene)
+    return report
 
 
 def is_enabled(scene) -> bool:

@@ -102,6 +102,8 @@ class SceneFacts:
     clip_end_m: float | None = None   #: the scene camera's clip end, m
     key_tiles: int = 1                #: key tiles the scene's Precise table holds (> 1: a camera or sun that moves)
     animated_settings: tuple[str, ...] = ()  #: the Atmos settings keys or drivers change over time (interface names)
+    holdout: bool = False             #: a view layer holds out a collection with objects
+    blurs: tuple[str, ...] = ()       #: "depth of field", "motion blur": what the scene's camera and render blur
 
     def __post_init__(self) -> None:
         if self.render_mode not in MODES:
@@ -209,13 +211,41 @@ def animated_settings_note(facts: SceneFacts) -> str | None:
             "renders with the values last applied (animate the sun lamp or the camera, or render each value as a shot)")
 
 
+#: Where a held-out object's hole meets a hazed surface behind it, the held-out material's AOVs still count in the
+#: pixel, so the edge pixels are off (tools/measure_silhouettes.py, Cycles 5.2.3: 5.7 % mean, 59 % max).
+NOTE_HOLDOUT = ("Holdout collection: pixels at a held-out object's edge are off by 6 % on average, up to 59 % "
+                "(docs/silhouettes.md)")
+
+
+def holdout_note(facts: SceneFacts, mode: str) -> str | None:
+    """The note on held-out objects' edges (the modes that read the materials' AOVs in the compositor), or None."""
+    return NOTE_HOLDOUT if facts.holdout and mode in AOV_MODES else None
+
+
+#: Eevee applies depth of field and motion blur to its image after shading, but not to the AOVs Atmos reads, so
+#: the edges they blur are off (tools/measure_silhouettes.py, Eevee 5.2.3: depth of field 2.5 % mean and 31 % max at
+#: a ridge against the sky, motion blur 8.1 % mean and 26 % max where a near surface moves over a far one).
+EEVEE_BLUR_ERRORS = {"depth of field": "31 %", "motion blur": "26 %"}
+
+
+def eevee_blur_note(facts: SceneFacts, mode: str) -> str | None:
+    """The note on Eevee's depth of field and motion blur with the AOV modes, or None."""
+    blurs = [blur for blur in facts.blurs if blur in EEVEE_BLUR_ERRORS]
+    if facts.engine not in EEVEE_ENGINES or mode not in AOV_MODES or not blurs:
+        return None
+    errors = ", ".join(f"{blur} up to {EEVEE_BLUR_ERRORS[blur]}" for blur in blurs)
+    return (f"Eevee blurs the image but not Atmos's passes: edges are off ({errors}); Cycles keeps them within "
+            "3 % (docs/silhouettes.md)")
+
+
 def plan_for(facts: SceneFacts) -> Plan:
     """The :class:`Plan` for ``facts`` (module docstring: the rules)."""
     mode, mode_note = mode_for(facts)
     level, level_note = level_for(facts, mode)
     aov_modes = {m for m in (mode, *facts.other_modes) if m in AOV_MODES}
     precise = level == "precise"
-    notes = tuple(note for note in (mode_note, level_note, clip_note(facts), animated_settings_note(facts)) if note)
+    notes = tuple(note for note in (mode_note, level_note, clip_note(facts), animated_settings_note(facts),
+                                    holdout_note(facts, mode), eevee_blur_note(facts, mode)) if note)
     return Plan(mode=mode, level=level, mie=facts.mie, absorption=facts.absorption, sky=facts.sky,
                 sky_level="precise" if precise else "fast", sky_ground=facts.sky_ground,
                 lighting="sky" if precise else "table", sun_lamp=facts.sun_lamp, tables=precise,

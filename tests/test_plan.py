@@ -87,6 +87,21 @@ def test_the_animated_settings_note():
     assert plan_for(SceneFacts()).notes == ()
 
 
+def test_the_holdout_note():
+    (note,) = plan_for(SceneFacts(holdout=True)).notes
+    assert note.startswith("Holdout collection: pixels at a held-out object's edge are off")
+    assert plan_for(SceneFacts(holdout=True, render_mode="COMPOSITOR")).notes == (note,)
+    in_render = plan_for(SceneFacts(holdout=True, render_mode="IN_RENDER")).notes   # the shader applies it per sample
+    assert note not in in_render
+
+
+def test_the_eevee_blur_note():
+    (note,) = plan_for(SceneFacts(engine="BLENDER_EEVEE", blurs=("depth of field", "motion blur"))).notes
+    assert note.startswith("Eevee blurs the image but not Atmos's passes") and "motion blur up to 26 %" in note
+    assert plan_for(SceneFacts(engine="CYCLES", blurs=("depth of field",))).notes == ()
+    assert plan_for(SceneFacts(engine="BLENDER_EEVEE")).notes == ()
+
+
 def test_features_and_keys():
     assert plan_for(SceneFacts(quality="PRECISE", mie=False)).aerial_key == "rayleigh+abs+precise"
     with pytest.raises(ValueError, match="quality"):   # retired in December 2026 (files upgrade: migration)

@@ -80,6 +80,12 @@ ROWS = (
     ("disable_s", "disable", None),
     ("enable_animated_s", "enable, the same scene with its sun keyed over 250 frames (every frame's sun read, its key "
      "tiles baked)", None),
+    ("unique_enable_s", "api.enable, 5000 objects of their own mesh and material, no world, no sun", 1000.0),
+    ("unique_enable_bakes", "the same: Precise bakes in that enable (target 1)", None),
+    ("unique_set_sun_s", "the same: api.set_sun to a new elevation (median of 5; a tile baked each)", 50.0),
+    ("unique_edit_s", "the same: an atmosphere edit (Visibility) to the exact table", 1000.0),
+    ("unique_frame_on_ms", "the same: a frame change with Atmos on (ms, median of 5)", None),
+    ("unique_frame_off_ms", "the same: a frame change with Atmos off (ms, median of 5, interleaved)", None),
 )
 
 
@@ -273,6 +279,8 @@ def _kept_cost_section() -> str:
 def _cell(key: str, value: float | None) -> str:
     if value is None:
         return "-"
+    if key.endswith("_bakes"):
+        return f"{value:d}"
     return f"{value * 1000.0:.0f} ms" if key.endswith("_s") else f"{value:.2f} ms"
 
 

@@ -2,6 +2,7 @@
 """One Blender version's scale measurements for ``tools/bench.py``: prints one JSON line (seconds / ms).
 
     .venv/bpy-5.2.3/bin/python tools/bench_scale.py --materials 5000 --objects 20000 [--profile] [--animated-frames 250]
+        [--unique 5000]
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import cProfile
 import json
 import math
 import pstats
+import statistics
 import sys
 import time
 import warnings
@@ -26,6 +28,18 @@ from atmos_addon import presets  # noqa: E402
 from atmos_addon.blender import orchestrator  # noqa: E402
 
 
+def triangle(index: int):
+    """A one-triangle mesh with a node-based material of its own, both numbered ``index``."""
+    material = bpy.data.materials.new(f"Material {index}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        material.use_nodes = True
+    mesh = bpy.data.meshes.new(f"Mesh {index}")
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    mesh.materials.append(material)
+    return mesh
+
+
 def build_scene(n_materials: int, n_objects: int):
     """An empty file with a camera, a sun and ``n_objects`` triangles sharing ``n_materials`` meshes."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -36,21 +50,76 @@ def build_scene(n_materials: int, n_objects: int):
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
     sun.rotation_euler = (math.radians(40.0), 0.0, 0.5)
     scene.collection.objects.link(sun)
-    meshes = []
-    for index in range(n_materials):
-        material = bpy.data.materials.new(f"Material {index}")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", DeprecationWarning)
-            material.use_nodes = True
-        mesh = bpy.data.meshes.new(f"Mesh {index}")
-        mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
-        mesh.materials.append(material)
-        meshes.append(mesh)
+    meshes = [triangle(index) for index in range(n_materials)]
     objects = scene.collection.objects
     for index in range(n_objects):
         objects.link(bpy.data.objects.new(f"Object {index}", meshes[index % n_materials]))
     bpy.context.view_layer.update()
     return scene
+
+
+def build_unique_scene(n_objects: int):
+    """An empty file with a camera and ``n_objects`` triangles, each with its own mesh and its own material; no world
+    and no sun lamp (Atmos adds both): a pipeline's scene, whose objects share nothing."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.rotation_euler = (math.radians(90.0), 0.0, 0.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    for index in range(n_objects):
+        obj = bpy.data.objects.new(f"Object {index}", triangle(index))
+        obj.location = (3.0 * (index % 100), 100.0 + 3.0 * (index // 100), 0.0)
+        scene.collection.objects.link(obj)
+    return scene
+
+
+def measure_unique(n_objects: int, repeats: int) -> dict:
+    """Through the Python API, on :func:`build_unique_scene`, in a process that has baked nothing yet (the atmosphere's
+    tables are built in the enable): the enable and the Precise bakes in it, a sun move
+    (median of ``repeats``, each to a new elevation: a tile baked each time), an atmosphere edit (the visibility), and
+    a frame change with Atmos on and off (medians, interleaved: the handlers' cost when nothing changes)."""
+    from atmos_addon import api
+    from atmos_addon.blender.apply import precise_tables
+
+    scene = build_unique_scene(n_objects)
+    baked = []
+    bake = precise_tables.bake
+
+    def counted(*args, **kwargs):
+        tiles = bake(*args, **kwargs)
+        baked.append(tiles)
+        return tiles
+
+    precise_tables.bake = counted
+    try:
+        start = time.perf_counter()
+        api.enable(scene, preset="clear")
+        results = {"unique_enable_s": time.perf_counter() - start, "unique_enable_bakes": sum(1 for n in baked if n)}
+    finally:
+        precise_tables.bake = bake
+    moves = []
+    for index in range(repeats):
+        start = time.perf_counter()
+        api.set_sun(scene, 30.0 + 2.0 * index, 45.0)
+        moves.append(time.perf_counter() - start)
+    results["unique_set_sun_s"] = statistics.median(moves)
+    start = time.perf_counter()
+    scene.atmos.visibility_km = 40.0
+    results["unique_edit_s"] = time.perf_counter() - start
+    on, off = [], []
+    scene.frame_end = 2 * repeats + 2
+    for index in range(repeats):
+        for enabled, times in ((True, on), (False, off)):
+            if enabled != api.is_enabled(scene):
+                api.enable(scene) if enabled else api.disable(scene)
+            start = time.perf_counter()
+            scene.frame_set(2 + 2 * index + (0 if enabled else 1))
+            times.append(time.perf_counter() - start)
+    results["unique_frame_on_ms"] = statistics.median(on) * 1000.0
+    results["unique_frame_off_ms"] = statistics.median(off) * 1000.0
+    api.disable(scene)
+    return results
 
 
 def key_the_sun(scene, frames: int) -> None:
@@ -123,9 +192,13 @@ def main() -> None:
     parser.add_argument("--profile", action="store_true")
     parser.add_argument("--animated-frames", type=int, default=250,
                         help="frames of the sun's keys for the animated enable (0: not measured)")
+    parser.add_argument("--unique", type=int, default=5000,
+                        help="objects of the scene whose objects share no mesh or material (0: not measured)")
     args = parser.parse_args()
     atmos_addon.register()
     results = {"blender": bpy.app.version_string}
+    if args.unique:   # first, as a pipeline's script meets it: nothing baked or built in this process yet
+        results.update(measure_unique(args.unique, 5))
 
     scene = build_scene(args.small, args.small * 4)
     orchestrator.enable_effect(scene)

@@ -136,6 +136,13 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def _version_key(section: str) -> tuple:
+    """Minus the Blender version of a section's heading ("## Blender 5.2.3 LTS, ..."), for newest first."""
+    words = section.split("\n", 1)[0].split()
+    numbers = words[2].split(".") if len(words) > 2 else []
+    return tuple(-int(n) for n in numbers if n.isdigit())
+
+
 def write_doc(section: str) -> None:
     """Replace (or add) this section (by its heading) of docs/silhouettes.md below the page's hand-written part."""
     text = DOC.read_text()
@@ -144,8 +151,9 @@ def write_doc(section: str) -> None:
     head, sections = parts[0], ["## " + p for p in parts[1:]]
     kept = [s for s in sections if not s.startswith("## Blender") or not s.startswith(marker + "\n")]
     written = [s for s in kept if not s.startswith("## Blender")]
+    # This checkout's sections first (newest Blender first, then by engines), another checkout's after them.
     measured = sorted([s for s in kept if s.startswith("## Blender")] + [section],
-                      key=lambda s: s.split("\n", 1)[0], reverse=True)
+                      key=lambda s: ("(`atmos_addon` of" in s.split("\n", 1)[0], _version_key(s), s.split("\n", 1)[0]))
     DOC.write_text(head.rstrip("\n") + "\n\n" + "\n".join(s.rstrip("\n") + "\n" for s in written + measured))
     print(f"wrote {DOC.relative_to(REPO_ROOT)}")
 

@@ -1,9 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The Atmosphere panel in a GUI Blender at the Properties editor's default width: screenshots, a cut-text check.
 
-Run by ``tools/verify_panel_chroot.sh`` (GUI Blender under Xvfb in a Debian chroot), or by hand::
+Run by ``CHECK=panel tools/verify_viewport_chroot.sh`` (GUI Blender under Xvfb in a Debian chroot), or by hand::
 
-    xvfb-run -a -s '-screen 0 1280x2400x24' blender --factory-startup --python tools/verify_panel.py -- --out DIR
+    xvfb-run -a -s '-screen 0 1280x2400x24' blender --factory-startup --python tools/verify_panel.py -- --out DIR [--zip dist/atmos-0.1.0.zip]
 
 Blender opens with its factory layout on a screen 1280 px wide (the width at which issue 29 found labels cut; the
 layout scales its areas with the window, so a wider screen only widens the editor), the valley sample scene and
@@ -110,9 +110,10 @@ class Tee:
             return Share(row=self._row, index=len(self._row.icon_only) - 1)
         return self._share
 
-    def _note(self, kind: str, text: str, share: Share, icon: bool, column: float = 1.0):
+    def _note(self, kind: str, text: str, share: Share, icon: bool, column: float = 1.0, units: float = 0.0):
         if text:
-            self._record.append({"kind": kind, "text": text, "share": share, "icon": icon, "column": column})
+            self._record.append({"kind": kind, "text": text, "share": share, "icon": icon, "column": column,
+                                 "units": units})
 
     def _child(self, real, *, row: bool = False, split: float | None = None):
         share = self._place()
@@ -136,7 +137,9 @@ class Tee:
         label = prop.name if text is None else text
         value_column = (1.0 - LABEL_COLUMN) if self._real.use_property_split else 1.0
         if self._real.use_property_split and prop.type != "BOOLEAN" and not kwargs.get("expand"):
-            self._note("label", label, self._place(), False, LABEL_COLUMN)   # the label column
+            share = self._place()
+            self._note("label", label, share, False, LABEL_COLUMN)   # the label column
+            self._note_value(data, prop, kwargs, share, 1.0 - LABEL_COLUMN)
         elif prop.type == "ENUM" and kwargs.get("expand"):
             share = self._place()
             items = [item.name for item in prop.enum_items]
@@ -146,6 +149,20 @@ class Tee:
             icon = kwargs.get("icon", "NONE") != "NONE" or prop.type == "BOOLEAN"   # a checkbox is a unit wide
             self._note("button", label, self._place(icon_only=not label), icon, value_column)
         return self._real.prop(data, name, **kwargs)
+
+    def _note_value(self, data, prop, kwargs, share: Share, column: float) -> None:
+        """The text a value field shows where it is a name, not a number (Blender shortens numbers to fit): a
+        pointer's data-block name or its placeholder (after the data-block icon, before the eyedropper), an enum
+        menu's current item (before its arrow)."""
+        if prop.type == "POINTER":
+            value = getattr(data, prop.identifier)
+            text = value.name if value is not None else kwargs.get("placeholder", "")
+            self._note("value", text, share, True, column, units=1.0)
+        elif prop.type == "ENUM" and not prop.is_enum_flag:
+            identifier = getattr(data, prop.identifier)
+            names = [item.name for item in prop.enum_items if item.identifier == identifier]
+            if names:
+                self._note("value", names[0], share, True, column)
 
     def operator(self, idname, **kwargs):
         text = kwargs.get("text")
@@ -173,7 +190,7 @@ def measure(record: list, layout_px: float, scale: float) -> list[dict]:
     rows = []
     for entry in record:
         room = entry["share"].px(layout_px, scale) * entry["column"]
-        room -= 2.0 * CLIP_MARGIN_PX * scale + (UNIT_PX * scale if entry["icon"] else 0.0)
+        room -= 2.0 * CLIP_MARGIN_PX * scale + UNIT_PX * scale * ((1.0 if entry["icon"] else 0.0) + entry["units"])
         width = blf.dimensions(0, entry["text"])[0]
         rows.append({"kind": entry["kind"], "text": entry["text"], "width_px": round(width, 1),
                      "room_px": round(room, 1), "cut": width > room + 0.5})
@@ -187,6 +204,7 @@ def parse_args() -> argparse.Namespace:
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="verify_panel.py")
     parser.add_argument("--out", type=Path, required=True, help="folder for the screenshots and panel.json")
+    parser.add_argument("--zip", type=Path, help="install this extension zip and check it (default: this checkout)")
     return parser.parse_args(argv)
 
 
@@ -200,23 +218,55 @@ def screenshot(window, area, path: Path) -> None:
                     str(path)], check=True, timeout=60)
 
 
+#: The package Blender loads the extension as when it is installed into the user repository.
+EXTENSION_PACKAGE = "bl_ext.user_default.atmos"
+
+
+def load_atmos(zip_path: Path | None):
+    """The ``atmos_addon`` package, registered: installed from ``zip_path`` into the user repository and enabled, as
+    Preferences > Get Extensions > Install from Disk does, or from this checkout without a zip."""
+    import importlib
+
+    if zip_path is None:
+        import atmos_addon
+
+        atmos_addon.register()
+        return atmos_addon
+    done = bpy.ops.extensions.package_install_files(filepath=str(zip_path), repo="user_default",
+                                                    enable_on_install=True)
+    if done != {"FINISHED"} or EXTENSION_PACKAGE not in bpy.context.preferences.addons:
+        raise RuntimeError(f"installing {zip_path} gave {done}; {EXTENSION_PACKAGE} is not enabled")
+    return importlib.import_module(EXTENSION_PACKAGE + ".atmos_addon")
+
+
+def record_panels(panel, record: list) -> None:
+    """Re-register the Atmosphere panels open (also the ones closed by default: every text is drawn) and drawing
+    through a :class:`Tee` that notes into ``record``."""
+    panels = [cls for cls in panel.CLASSES if issubclass(cls, bpy.types.Panel)]
+    for cls in reversed(panels):
+        bpy.utils.unregister_class(cls)
+    for cls in panels:
+        cls.bl_options = set(getattr(cls, "bl_options", ())) - {"DEFAULT_CLOSED"}
+        for method in ("draw", "draw_header"):
+            if method in cls.__dict__:
+                setattr(cls, method, _recording(cls.__dict__[method], record))
+        bpy.utils.register_class(cls)
+
+
 def run(args: argparse.Namespace, result: dict):
     """The whole check into ``result``, as a generator of timer delays."""
-    import atmos_addon
-    from atmos_addon import api
-    from atmos_addon.blender.ui import panel
+    import importlib
+
     from atmos_addon.sample_scenes import valley
 
     scene = valley.build()   # reads factory settings (use_empty): first, before anything holds a window
     yield 1.0
+    atmos = load_atmos(args.zip)
+    result["atmos"] = atmos.__file__
+    api = importlib.import_module(atmos.__name__ + ".api")
+    panel = importlib.import_module(atmos.__name__ + ".blender.ui.panel")
     record: list = []
-    for cls in panel.CLASSES:
-        if issubclass(cls, bpy.types.Panel):
-            cls.bl_options = set(getattr(cls, "bl_options", ())) - {"DEFAULT_CLOSED"}   # all open: every text
-            for method in ("draw", "draw_header"):
-                if method in cls.__dict__:
-                    setattr(cls, method, _recording(cls.__dict__[method], record))
-    atmos_addon.register()
+    record_panels(panel, record)
     window = bpy.context.window_manager.windows[0]
     window.scene = scene
     area = properties_area(window)
@@ -293,9 +343,11 @@ def main() -> None:
         for error in result["errors"]:
             print(f"PANEL ERROR {error}", flush=True)
         print(f"PANEL {'FAILED' if result['errors'] else 'OK'}: wrote {args.out / 'panel.json'}", flush=True)
-        # Not wm.quit_blender: Blender 5.2.2 then crashed freeing the command-line handler the add-on registered
-        # from source ("free(): invalid size", exit status 139); the exit status says whether the check passed.
-        os._exit(1 if result["errors"] else 0)
+        # Blender's own exit: it unregisters the add-on's command-line handler and frees Blender's data, where a
+        # crash on exit would show (the exit status is then not 0 and the check fails).
+        if result["errors"]:
+            os._exit(1)
+        bpy.ops.wm.quit_blender()
 
     run_steps(run(args, result), result["errors"], finish, persistent=True)   # valley.build loads a file
 

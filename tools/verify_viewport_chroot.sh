@@ -11,29 +11,44 @@
 # tools/verify_viewport.py in a GUI Blender for every case (engine x Atmos mode; In-Render only where Blender
 # is 4.5+) and prints a table from the JSON files the script writes. Screenshots: OUT_DIR/<tag>_<phase>.png.
 # The bind mounts it made are undone on exit (a chroot removed while the repository is mounted in it would take the
-# checkout with it). Nothing in the repository is written.
+# checkout with it). The viewport check writes nothing in the repository.
 #
 # Environment: CHROOTS, MIRROR (default http://deb.debian.org/debian), SUITES (default "trixie sid"),
 # CASES (default "EEVEE:COMPOSITOR EEVEE:PER_PIXEL CYCLES:COMPOSITOR CYCLES:PER_PIXEL CYCLES:IN_RENDER"; an
 # entry ENGINE:MODE:FLAG adds --FLAG, e.g. CYCLES:COMPOSITOR:no-final-render), CASE_TIMEOUT (seconds per Blender
 # run, default 2400).
 #
-# CHECK=panel runs tools/verify_panel.py instead (the Atmosphere panel at the Properties editor's default width,
-# issue 29): for each suite and each screen width in PANEL_WIDTHS (default "1920 1280": Blender's factory layout
-# gives its Properties editor 339 and 225 px there), screenshots and the cut-text check into
-# OUT_DIR/panel_<version>_<width>/, e.g. `sudo CHECK=panel SUITES=sid tools/verify_viewport_chroot.sh`.
+# CHECK=panel checks the extension as an artist installs it, from a clean clone in one command:
+#
+#   sudo CHECK=panel tools/verify_viewport_chroot.sh          # default OUT_DIR: docs/panel, SUITES: sid
+#
+# In each suite's Blender it builds the zip from this checkout (`blender --command extension build`, into
+# OUT_DIR/dist), installs it into a fresh HOME (`blender --command extension install-file -e`), runs
+# `blender -b --command atmos render valley ...` and a `blender -b --python-expr` script through the installed
+# package and requires exit status 0 from both, then runs tools/verify_panel.py --zip in a GUI Blender: for each
+# screen width in PANEL_WIDTHS (default "1920": Blender's factory layout gives its Properties editor 339 px there;
+# 1280 gives 225 px) screenshots and the cut-text check (panel.json) into OUT_DIR/<version>_<width>/. Logs go to
+# LOGS (default /tmp/atmos_panel_logs). The script's exit status is 1 when any of these failed. Debian trixie's Blender (4.3) is older than the extension's minimum, 4.5.
 
 set -euo pipefail
 
 REPO=$(cd "$(dirname "$0")/.." && pwd)
-OUT=${1:-/work/viewport_out}
+CHECK=${CHECK:-viewport}
+if [ "$CHECK" = panel ]; then
+    OUT=${1:-$REPO/docs/panel}
+    SUITES=${SUITES:-sid}
+else
+    OUT=${1:-/work/viewport_out}
+    SUITES=${SUITES:-trixie sid}
+fi
+OUT=$(mkdir -p "$OUT" && cd "$OUT" && pwd)
 CHROOTS=${CHROOTS:-/work/chroots}
 MIRROR=${MIRROR:-http://deb.debian.org/debian}
-SUITES=${SUITES:-trixie sid}
 CASES=${CASES:-EEVEE:COMPOSITOR EEVEE:PER_PIXEL CYCLES:COMPOSITOR CYCLES:PER_PIXEL CYCLES:IN_RENDER}
 CASE_TIMEOUT=${CASE_TIMEOUT:-2400}
-CHECK=${CHECK:-viewport}
-PANEL_WIDTHS=${PANEL_WIDTHS:-1920 1280}
+PANEL_WIDTHS=${PANEL_WIDTHS:-1920}
+LOGS=${LOGS:-/tmp/atmos_panel_logs}
+FAILED=0
 # python3-cattr and python3-requests: Blender 5.2's bundled extensions add-on imports them at startup.
 PACKAGES="blender xvfb xauth mesa-utils x11-apps imagemagick python3-numpy libgl1-mesa-dri python3-cattr
 python3-requests"
@@ -42,10 +57,14 @@ APT="apt-get -o Acquire::Check-Valid-Until=false"
 
 mkdir -p "$OUT" "$CHROOTS"
 MOUNTED=()
-unmount_all() {   # the mounts made here, innermost (last made) first
-    local index
+unmount_all() {   # the mounts made here, innermost (last made) first; a mount still busy for a moment is retried
+    local index try
     for ((index = ${#MOUNTED[@]} - 1; index >= 0; index--)); do
-        umount "${MOUNTED[index]}" || echo "could not unmount ${MOUNTED[index]}" >&2
+        for try in 1 2 3 4 5 6 7 8 9 10; do
+            umount "${MOUNTED[index]}" 2>/dev/null && break
+            [ "$try" = 10 ] && echo "could not unmount ${MOUNTED[index]}" >&2
+            sleep 1
+        done
     done
 }
 trap unmount_all EXIT
@@ -94,16 +113,54 @@ run_case() {   # run_case SUITE ENGINE MODE [FLAG]
     grep '^VIEWPORT' "$OUT/$tag.log" | grep -v ' poll ' | sed 's/^/   /' || true
 }
 
+build_zip() {   # build_zip SUITE: the extension zip of this checkout, built by the suite's Blender; ZIP: its path there
+    local root=$CHROOTS/$1
+    rm -rf "$root/tmp/atmos_dist" && mkdir -p "$root/tmp/atmos_dist" "$LOGS"
+    chroot "$root" blender --command extension build --source-dir "$REPO" --output-dir /tmp/atmos_dist \
+        > "$LOGS/build.log" 2>&1 || { echo "zip build failed (see $LOGS/build.log)"; exit 1; }
+    ZIP=$(cd "$root" && ls tmp/atmos_dist/atmos-*.zip) && ZIP=/$ZIP
+}
+
+in_home() {   # in_home SUITE COMMAND: COMMAND in the suite's chroot with HOME a fresh folder (no user settings)
+    local root=$CHROOTS/$1
+    chroot "$root" env HOME=/tmp/atmos_home sh -c "$2"
+}
+
+check_cli() {   # check_cli SUITE: install the zip, then the command line's exit status must be 0
+    local suite=$1 root=$CHROOTS/$1 status
+    rm -rf "$root/tmp/atmos_home" && mkdir -p "$root/tmp/atmos_home"
+    echo "== installed extension, command line"
+    in_home "$suite" "blender --command extension install-file -r user_default -e '$ZIP'" > "$LOGS/cli.log" 2>&1 \
+        || { echo "   install: exit status $? (see $OUT/cli.log)"; FAILED=1; return; }
+    status=0
+    in_home "$suite" "cd /tmp/atmos_home && blender -b --command atmos render valley --preset sunset \
+        --resolution 160x90 --samples 8 --output /tmp/atmos_home/valley.png" >> "$LOGS/cli.log" 2>&1 || status=$?
+    [ -f "$root/tmp/atmos_home/valley.png" ] || status="${status}, no image"
+    echo "   blender -b --command atmos render valley: exit status $status"
+    [ "$status" = 0 ] || FAILED=1
+    status=0
+    in_home "$suite" "blender -b --python-expr 'import bpy
+from bl_ext.user_default.atmos.atmos_addon import api
+api.enable(bpy.context.scene, preset=\"overcast\")
+print(\"ATMOS_PYTHON_OK\", api.is_enabled(bpy.context.scene))'" >> "$LOGS/cli.log" 2>&1 || status=$?
+    grep -q '^ATMOS_PYTHON_OK True' "$LOGS/cli.log" || status="${status}, the script did not finish"
+    echo "   blender -b --python-expr (api.enable through the installed package): exit status $status"
+    [ "$status" = 0 ] || FAILED=1
+}
+
 run_panel() {   # run_panel SUITE WIDTH: the panel check on a screen WIDTH px wide (tall enough for the whole tab)
-    local suite=$1 width=$2 root=$CHROOTS/$1 version out
+    local suite=$1 width=$2 root=$CHROOTS/$1 version out status=0
     version=$(chroot "$root" blender --version | awk 'NR == 1 {print $2}')
-    out="$OUT/panel_${version}_${width}"
-    mkdir -p "$out"
+    out="$OUT/${version}_${width}"
+    rm -rf "$out" && mkdir -p "$out"
     echo "== panel, Blender $version, screen ${width} px wide"
-    timeout "$CASE_TIMEOUT" chroot "$root" sh -c "cd '$REPO' && xvfb-run -a -s '-screen 0 ${width}x2400x24' \
-        blender --factory-startup --python tools/verify_panel.py -- --out '$out'" > "$out/panel.log" 2>&1 \
-        || echo "   exit status $? (see $out/panel.log)"
-    grep '^PANEL' "$out/panel.log" | sed 's/^/   /' || true
+    rm -rf "$root/tmp/atmos_home" && mkdir -p "$root/tmp/atmos_home"
+    timeout "$CASE_TIMEOUT" chroot "$root" env HOME=/tmp/atmos_home sh -c "cd '$REPO' && \
+        xvfb-run -a -s '-screen 0 ${width}x2400x24' blender --factory-startup --python tools/verify_panel.py -- \
+        --out '$out' --zip '$ZIP'" > "$LOGS/panel_${version}_${width}.log" 2>&1 || status=$?
+    grep '^PANEL' "$LOGS/panel_${version}_${width}.log" | sed 's/^/   /' || true
+    echo "   exit status $status (log: $LOGS/panel_${version}_${width}.log)"
+    [ "$status" = 0 ] || FAILED=1
 }
 
 for suite in $SUITES; do
@@ -111,11 +168,14 @@ for suite in $SUITES; do
 done
 if [ "$CHECK" = panel ]; then
     for suite in $SUITES; do
+        build_zip "$suite"
+        check_cli "$suite"
         for width in $PANEL_WIDTHS; do
             run_panel "$suite" "$width"
         done
     done
-    exit 0
+    echo "panel check: $([ "$FAILED" = 0 ] && echo passed || echo FAILED)"
+    exit "$FAILED"
 fi
 for suite in $SUITES; do
     for case in $CASES; do

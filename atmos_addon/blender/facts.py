@@ -29,7 +29,30 @@ def _own_facts(scene, other_modes: tuple[str, ...] = ()) -> SceneFacts:
         sky=bool(settings.sky_enabled), sky_ground=settings.sky_ground, sun_lamp=bool(settings.drive_sun_lamp),
         multiple_scattering=bool(settings.multiple_scattering), other_modes=other_modes, clip_ratio=clip_ratio,
         clip_end_m=clip_end_m, key_tiles=max(int(scene.get(KEY_TILES, 1)), 1),
-        animated_settings=animated_settings(scene))
+        animated_settings=animated_settings(scene), holdout=has_holdout_collection(scene), blurs=blurs(scene))
+
+
+def blurs(scene) -> tuple[str, ...]:
+    """What blurs ``scene``'s image over depths: the scene camera's depth of field, the render's motion blur."""
+    camera = scene.camera
+    found = []
+    if camera is not None and camera.type == "CAMERA" and camera.data.dof.use_dof:
+        found.append("depth of field")
+    if scene.render.use_motion_blur:
+        found.append("motion blur")
+    return tuple(found)
+
+
+def has_holdout_collection(scene) -> bool:
+    """True when a view layer of ``scene`` holds out a collection with objects in it (Collection > Holdout)."""
+    def held_out(layer_collection) -> bool:
+        if layer_collection is None:   # a view layer Blender has not built yet (a scene being copied)
+            return False
+        if layer_collection.holdout and len(layer_collection.collection.all_objects):
+            return True
+        return any(held_out(child) for child in layer_collection.children)
+
+    return any(held_out(layer.layer_collection) for layer in scene.view_layers)
 
 
 def animated_settings(scene) -> tuple[str, ...]:

@@ -23,17 +23,18 @@ from ..physics import rayleigh_coefficients
 from ..physics.atmosphere import SEED_SUN_IRRADIANCE_TOP, SEED_WAVELENGTHS_NM
 from ..plan import RETIRED_BALANCED_NOTE
 
-#: Settings whose default changed, with the default a file saved before the change was made with. December 2026
-#: (issue 27): the default became the complete model, Precise with multiple scattering and 300 DU of ozone; it was
-#: Fast without either. Then the channels became the solar spectrum's as Rec.709 sees it: wavelengths 648.1, 547.4,
-#: 443.1 nm (standard air's Rayleigh coefficients there) and a sun of the spectrum's colour; they were 680, 550,
-#: 440 nm and a white sun of 4.5. Then (issue 28) the mode became Per Pixel, the complete model at the cost of
-#: Blender's own sky; it was Compositor.
+#: Settings whose default changed, with the default a file saved before the change was made with (CHANGELOG.md
+#: has when): the level was Fast without multiple scattering or ozone (now Precise with both and 300 DU); the
+#: channels stood for 680, 550, 440 nm with a white sun of 4.5 (now the solar spectrum's channels and colour); the
+#: mode was Compositor (now Per Pixel); the haze was grey, 0.033/km scattering and 0.0033/km absorption, under no
+#: preset name (now the Clear preset's haze, and its name).
 FORMER_DEFAULTS = {"render_mode": "COMPOSITOR", "quality": "FAST", "multiple_scattering": False,
                    "ozone_column_du": 0.0, "wavelengths_nm": SEED_WAVELENGTHS_NM,
                    "rayleigh_scattering_per_km": tuple(float(v) for v in rayleigh_coefficients(SEED_WAVELENGTHS_NM)
                                                        * 1000.0),
-                   "sun_irradiance_top": (SEED_SUN_IRRADIANCE_TOP,) * 3}
+                   "sun_irradiance_top": (SEED_SUN_IRRADIANCE_TOP,) * 3,
+                   "mie_scattering_per_km": (0.033,) * 3, "mie_absorption_per_km": (0.0033,) * 3,
+                   "preset_name": ""}
 
 
 def pin_defaults(settings) -> None:

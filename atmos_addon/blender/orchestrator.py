@@ -270,17 +270,21 @@ def enable_effect(scene) -> Report:
     engine changed), that mode is removed first."""
     if mode_mismatch(scene):
         disable_effect(scene)
-    if len(scene.view_layers):
-        # The tables and Auto read the camera's matrix: objects moved by a script since the last evaluation get
-        # current matrices. Before this function writes the scene's properties: a written scene re-evaluates every
-        # object (3 s of a 20000-object enable, measured), an untouched one only what the script moved. After the
-        # mode switch: the depsgraph handler would otherwise see the mismatch and enable again from in here.
+    if len(scene.view_layers) and scene_reading.needs_evaluation(scene):
+        # The tables read the sun's and the camera's world matrices, composed from their transforms where nothing
+        # else moves them (scene_reading.world_matrix); a constraint or driver needs the depsgraph. Before this
+        # function writes the scene's properties: a written scene re-evaluates every object (3 s of a 20000-object
+        # enable, measured), an untouched one only what the script moved. After the mode switch: the depsgraph
+        # handler would otherwise see the mismatch and enable again from in here.
         scene.view_layers[0].update()
     with held(scene):
         migration.pin_defaults(scene.atmos)   # a file saved from now on keeps these whatever later defaults are
     _set_enabled(scene, True)
     quality_choice.resolve(scene)
     plan = facts.plan_of(scene)
+    lamp_message = None
+    if plan.sun_lamp:   # before the tables, which follow the lamp: a lamp created after them would bake them again
+        _, lamp_message = sun_lamp.ensure_sun_lamp(scene)
     sampled = None
     if precise_tables.uses_precise(scene):
         # Before the materials: the groups link the table image as they are built. Pointing a group that 5000
@@ -292,8 +296,7 @@ def enable_effect(scene) -> Report:
     if plan.compositor is not None:
         report.messages.extend(compositor.install(scene, evaluation=plan.compositor,
                                                   features=facts.aerial_features(plan)))
-    if plan.sun_lamp:
-        _, lamp_message = sun_lamp.ensure_sun_lamp(scene)
+    if lamp_message is not None:
         report.messages.append(lamp_message)
     if plan.sky:
         report.messages.append(world.install_sky(scene, sky_group(scene), facts.sky_features(plan)))

@@ -21,10 +21,12 @@ from bpy.props import (
     StringProperty,
 )
 
-from ..physics import Atmosphere
+from .. import presets
 from ..physics.spectrum import DEFAULT_OZONE_COLUMN_DU
 
-_CLEAR = Atmosphere()
+#: The defaults are the Clear preset's, so a fresh tick shows that preset's own numbers (70 km visibility).
+DEFAULT_PRESET = "clear"
+_CLEAR = presets.load(DEFAULT_PRESET).atmosphere
 
 
 def _per_km(values_per_m) -> tuple[float, float, float]:
@@ -46,16 +48,28 @@ def _on_parameter(self, context) -> None:
             orchestrator.update(scene)
 
 
-def _get_haze(self) -> float:
+def _get_visibility(self) -> float:
     from . import simple_controls
 
-    return simple_controls.get_haze_visibility(self)
+    return simple_controls.get_visibility_km(self)
 
 
-def _set_haze(self, value: float) -> None:
+def _set_visibility(self, value: float) -> None:
     from . import simple_controls
 
-    simple_controls.set_haze_visibility(self, value)
+    simple_controls.set_visibility_km(self, value)
+
+
+def _get_haze_colour(self):
+    from . import simple_controls
+
+    return simple_controls.get_haze_colour(self)
+
+
+def _set_haze_colour(self, value) -> None:
+    from . import simple_controls
+
+    simple_controls.set_haze_colour(self, value)
 
 
 def _get_air_density(self) -> float:
@@ -287,22 +301,36 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         soft_max=1000.0,
         update=_on_parameter,
     )
-    haze_visibility: FloatProperty(
-        name="Haze",
+    visibility_km: FloatProperty(
+        name="Visibility (km)",
         description=(
-            "Meteorological visibility at the ground, V = 3.912 / extinction at 550 nm (Koschmieder), as a "
-            "visibility sensor reports it. In a uniform haze a black object at V keeps 2 % contrast against the "
-            "horizon; real haze thins with height, so the horizon behind it is dimmer and it keeps more (clear "
-            "preset, 70 km: 4.6 %, docs/visibility.md). Shorter is hazier. Writes grey Mie scattering (and "
-            "matching absorption) on top of the air's own Rayleigh extinction"
+            "How far you see: the meteorological visibility at the ground in kilometres, V = 3.912 / extinction at "
+            "550 nm (Koschmieder), as a visibility sensor reports it. In a uniform haze a black object at V keeps "
+            "2 % contrast against the horizon; real haze thins with height, so the horizon behind it is dimmer and "
+            "it keeps more (clear preset, 70 km: 4.6 %, docs/visibility.md). Shorter is hazier. Writes the haze's "
+            "Mie scattering and absorption, keeping its colour, on top of the air's own Rayleigh extinction"
         ),
-        min=1.0,
-        soft_min=100.0,
-        soft_max=400000.0,
-        subtype="DISTANCE",
-        unit="LENGTH",
-        get=_get_haze,
-        set=_set_haze,
+        min=0.001,
+        soft_min=0.1,
+        soft_max=400.0,
+        precision=1,
+        step=100,
+        get=_get_visibility,
+        set=_set_visibility,
+    )
+    haze_colour: FloatVectorProperty(
+        name="Haze Colour",
+        description=(
+            "The tint the haze gives the light it scatters: its Mie scattering per channel over the largest "
+            "channel. White is a grey haze; a bluish one is fine aerosol (Angstrom exponent above 1), a warm one "
+            "dust. Setting it keeps the visibility and each channel's absorption"
+        ),
+        size=3,
+        subtype="COLOR",
+        min=0.0,
+        max=1.0,
+        get=_get_haze_colour,
+        set=_set_haze_colour,
     )
     air_density: FloatProperty(
         name="Air Density",
@@ -320,7 +348,7 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
     preset_name: StringProperty(
         name="Preset",
         description="The atmosphere preset last applied to this scene (its values may have been edited since)",
-        default="",
+        default=DEFAULT_PRESET,
     )
     sun_object: PointerProperty(
         name="Sun",

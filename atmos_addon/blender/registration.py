@@ -21,9 +21,11 @@ def register() -> None:
         bpy.utils.register_class(cls)
     handlers.add_handlers()
     cli_command.register()
-    # With the pip bpy module of 4.5, a process that exits with the add-on still registered crashes (exit code
-    # -11: Blender frees the CLI command after Python has shut down) or hangs; unregister while Python runs.
-    atexit.register(unregister)
+    # The pip bpy module frees the CLI command after Python has shut down, so a process that exits with the add-on
+    # registered crashes (exit code -11) or hangs: unregister while Python runs. Blender's own binary must not do
+    # this: it frees the RNA types first, so the same callback fails ("missing bl_rna attribute") and segfaults.
+    if getattr(bpy.app, "module", False):
+        atexit.register(unregister)
 
 
 def unregister() -> None:

@@ -14,6 +14,7 @@ from mathutils import Vector
 
 from .. import nodes
 from ..physics import Atmosphere
+from . import motion_path
 from .settings_io import FIELD_MAP
 
 #: Used when the scene has no sun lamp: 45 degrees above the horizon, towards +Y (north in Blender's convention).
@@ -30,8 +31,8 @@ def groups() -> ModuleType:
 
 def sun_object(scene):
     """The sun lamp that drives the atmosphere: ``scene.atmos.sun_object``, else the first sun lamp in the scene that
-    renders, else the first sun lamp. (A lamp switched off for renders, an alternative kept in the file, was picked
-    when it came first, until December 2026: the sky's sun then stood where no light came from.)"""
+    renders, else the first sun lamp (a lamp switched off for renders is an alternative kept in the file: the sky's
+    sun would stand where no light comes from)."""
     chosen = scene.atmos.sun_object
     if chosen is not None and chosen.type == "LIGHT" and chosen.data.type == "SUN":
         return chosen
@@ -45,12 +46,35 @@ def sun_object(scene):
     return first
 
 
-def direction_of(lamp) -> tuple[np.ndarray, str]:
-    """Unit direction TO the sun of ``lamp`` (None: the default sun) in world space, and a sentence saying where it
-    came from. A sun lamp shines along its local -Z axis, so the direction towards the sun is its local +Z axis."""
+def world_matrix(obj, scene):
+    """``obj``'s world matrix at ``scene``'s current frame, without evaluating the scene: composed from its transform
+    and its parents' (:func:`.motion_path.world_matrix`) where nothing else moves it (:func:`.motion_path.keys_alone`),
+    else the one the depsgraph last evaluated (:func:`needs_evaluation` says when that must be brought up to date)."""
+    if _composable(obj, scene):
+        return motion_path.world_matrix(obj, scene.frame_current + scene.frame_subframe)
+    return obj.matrix_world
+
+
+def _composable(obj, scene) -> bool:
+    """True when ``obj``'s world matrix can be composed from its transform keys at the scene's frame: nothing else
+    moves it and the scene's time is not remapped (its frames are then not the keys' frames)."""
+    return motion_path.keys_alone(obj) and not motion_path.time_is_remapped(scene)
+
+
+def needs_evaluation(scene) -> bool:
+    """True when the sun lamp's or the camera's world matrix needs the depsgraph: a constraint, a driver, an NLA
+    strip, a parent of another kind or remapped time moves it (:func:`world_matrix` reads the evaluated matrix
+    then)."""
+    return any(obj is not None and not _composable(obj, scene) for obj in (sun_object(scene), scene.camera))
+
+
+def direction_of(lamp, scene) -> tuple[np.ndarray, str]:
+    """Unit direction TO the sun of ``lamp`` (None: the default sun) in world space at ``scene``'s current frame, and
+    a sentence saying where it came from. A sun lamp shines along its local -Z axis, so the direction towards the
+    sun is its local +Z axis."""
     if lamp is None:
         return np.array(DEFAULT_SUN_DIRECTION), "No sun lamp: using the default sun 45 degrees above the horizon"
-    return direction_from_matrix(lamp.matrix_world, lamp.name)
+    return direction_from_matrix(world_matrix(lamp, scene), lamp.name)
 
 
 def direction_from_matrix(matrix, name: str) -> tuple[np.ndarray, str]:
@@ -66,7 +90,7 @@ def direction_from_matrix(matrix, name: str) -> tuple[np.ndarray, str]:
 
 def sun_direction(scene) -> tuple[np.ndarray, str]:
     """The unit direction to the scene's sun (:func:`sun_object`) and where it came from (:func:`direction_of`)."""
-    return direction_of(sun_object(scene))
+    return direction_of(sun_object(scene), scene)
 
 
 def metres_per_unit(scene) -> float:

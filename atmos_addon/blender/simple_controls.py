@@ -1,11 +1,14 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Two artist controls that are views of the coefficients, not settings of their own: Haze and Air Density.
+"""Artist controls that are views of the coefficients, not settings of their own: Visibility, Haze Colour and
+Air Density.
 
-* Haze is the meteorological visibility V = 3.912 / beta_ex(550 nm) (Koschmieder 1924: the distance
-  at which a black object keeps 2 % contrast against the horizon sky), with beta_ex the total
-  extinction beta_R + beta_M,sc + beta_M,abs at sea level. Setting it keeps the Rayleigh term and
-  gives the haze the rest, as grey Mie scattering with each channel's absorption-to-scattering
-  ratio kept (so soot stays soot, dust stays dust).
+* Visibility is the meteorological visibility V = 3.912 / beta_ex(550 nm) (Koschmieder 1924: the
+  distance at which a black object keeps 2 % contrast against the horizon sky), with beta_ex the total
+  extinction beta_R + beta_M,sc + beta_M,abs at sea level, shown in km. Setting it keeps the Rayleigh
+  term and gives the haze the rest, keeping the haze's colour and each channel's absorption-to-scattering
+  ratio (so soot stays soot, dust stays dust).
+* Haze Colour is the haze's scattering per channel over its largest channel (the tint the haze adds to
+  the light it scatters). Setting it keeps the visibility and each channel's absorption ratio.
 * Air Density is the Rayleigh coefficient at 550 nm relative to standard sea-level air
   (288.15 K, 101325 Pa; Bodhaine et al. 1999) at the same wavelengths. Setting it scales the
   current Rayleigh coefficients, keeping their colour.
@@ -49,23 +52,58 @@ def visibility_m(settings) -> float:
 
 
 def haze_coefficients(settings, visibility: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """Grey Mie scattering and the matching absorption (1/km) that give ``visibility`` metres.
+    """Mie scattering of the haze's current colour and the matching absorption (1/km) that give ``visibility``
+    metres.
 
     The haze's extinction at 550 nm is what the visibility needs beyond the Rayleigh term; it is
     split as s (1 + a_550) with a_c = absorption_c / scattering_c kept per channel. A visibility
-    longer than clean air alone allows gives no haze at all.
+    longer than clean air alone allows gives no haze at all (and a white Haze Colour after it).
     """
+    return _haze_with_visibility(settings, haze_colour(settings), visibility)
+
+
+def _haze_extinction_550(settings, visibility: float) -> float:
+    """The haze's sea-level extinction at 550 nm (1/km) that gives ``visibility`` metres with the settings' air."""
     rayleigh_550 = _at_550(settings, settings.rayleigh_scattering_per_km)
-    haze_550 = max(KOSCHMIEDER / max(visibility, 1e-9) * 1000.0 - rayleigh_550, 0.0)  # 1/km
+    return max(KOSCHMIEDER / max(visibility, 1e-9) * 1000.0 - rayleigh_550, 0.0)
+
+
+def _absorption_ratio(settings) -> np.ndarray:
+    """Each channel's haze absorption / scattering (a channel without scattering takes the mean ratio)."""
     scattering = np.asarray(settings.mie_scattering_per_km, dtype=float)
     absorption = np.asarray(settings.mie_absorption_per_km, dtype=float)
     if np.all(scattering <= 0.0):
-        ratio = np.full(3, DEFAULT_ABSORPTION_RATIO if np.all(absorption <= 0.0) else 0.0)
-    else:
-        fallback = float(np.sum(absorption) / max(np.sum(scattering), 1e-30))
-        ratio = np.where(scattering > 0.0, absorption / np.where(scattering > 0.0, scattering, 1.0), fallback)
-    grey = haze_550 / (1.0 + _at_550(settings, ratio))
-    return tuple([grey] * 3), tuple((grey * ratio).tolist())
+        return np.full(3, DEFAULT_ABSORPTION_RATIO if np.all(absorption <= 0.0) else 0.0)
+    fallback = float(np.sum(absorption) / max(np.sum(scattering), 1e-30))
+    return np.where(scattering > 0.0, absorption / np.where(scattering > 0.0, scattering, 1.0), fallback)
+
+
+def _haze_with_visibility(settings, shape, visibility: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Mie scattering proportional to ``shape`` per channel and the matching absorption (1/km), scaled so that the
+    total extinction at 550 nm gives ``visibility`` metres."""
+    ratio = _absorption_ratio(settings)
+    shape = np.asarray(shape, dtype=float)
+    unit_550 = _at_550(settings, shape) + _at_550(settings, shape * ratio)
+    scale = _haze_extinction_550(settings, visibility) / unit_550 if unit_550 > 0.0 else 0.0
+    return tuple((shape * scale).tolist()), tuple((shape * ratio * scale).tolist())
+
+
+#: Smallest channel of a Haze Colour written to the coefficients (a black channel would make the haze opaque
+#: nowhere and its visibility undefined).
+MIN_HAZE_COLOUR = 1.0e-3
+
+
+def haze_colour(settings) -> tuple[float, float, float]:
+    """The haze's scattering per channel over its largest channel; white where there is no haze."""
+    scattering = np.asarray(settings.mie_scattering_per_km, dtype=float)
+    peak = float(scattering.max())
+    return (1.0, 1.0, 1.0) if peak <= 0.0 else tuple((scattering / peak).tolist())
+
+
+def haze_for_colour(settings, colour) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Mie scattering and absorption (1/km) of the tint ``colour`` at the settings' current visibility."""
+    shape = np.clip(np.asarray(colour, dtype=float), MIN_HAZE_COLOUR, None)
+    return _haze_with_visibility(settings, shape, visibility_m(settings))
 
 
 def standard_rayleigh_per_km(settings) -> np.ndarray:
@@ -91,14 +129,26 @@ def rayleigh_for_density(settings, density: float) -> tuple[float, ...]:
 # ``get``/``set`` callbacks of the scene.atmos properties (one update per write through orchestrator.batch).
 
 
-def get_haze_visibility(settings) -> float:
-    return visibility_m(settings)
+def get_visibility_km(settings) -> float:
+    return visibility_m(settings) / 1000.0
 
 
-def set_haze_visibility(settings, value: float) -> None:
+def set_visibility_km(settings, value: float) -> None:
+    _write_haze(settings, haze_coefficients(settings, float(value) * 1000.0))
+
+
+def get_haze_colour(settings) -> tuple[float, float, float]:
+    return haze_colour(settings)
+
+
+def set_haze_colour(settings, value) -> None:
+    _write_haze(settings, haze_for_colour(settings, value))
+
+
+def _write_haze(settings, coefficients) -> None:
     from . import orchestrator
 
-    scattering, absorption = haze_coefficients(settings, float(value))
+    scattering, absorption = coefficients
     with orchestrator.batch(settings.id_data):
         settings.mie_scattering_per_km = scattering
         settings.mie_absorption_per_km = absorption

@@ -27,6 +27,9 @@ _last_sun_values: dict[str, tuple] = {}
 _last_sun_table: dict[str, tuple] = {}
 _last_sun_matrix: dict[str, tuple] = {}
 _last_camera_z: dict[str, float | None] = {}
+#: Per scene: what the sun's drivers evaluate to after the last sync (direction, E_sun, lamp colour, lamp strength),
+#: or None where nothing is driven.
+_driven_values: dict[str, tuple | None] = {}
 
 
 def _sun_values(scene, dependence: tuple, atmosphere: Atmosphere, elevation_rad: float, sun_radius: float,
@@ -83,7 +86,7 @@ def sync_scene(scene) -> None:
     settings = scene.atmos
     atmosphere = scene_reading.atmosphere_of(scene)
     lamp = scene_reading.sun_object(scene)
-    direction, sun_status = scene_reading.direction_of(lamp)
+    direction, sun_status = scene_reading.direction_of(lamp, scene)
     elevation_rad = math.asin(float(np.clip(direction[2], -1.0, 1.0)))
     diameter = float(settings.sun_angular_diameter)
     sun_radius = 0.5 * diameter
@@ -123,7 +126,8 @@ def sync_scene(scene) -> None:
     if enabled and in_render.is_installed(scene):
         in_render.sync_domes(scene, atmosphere, scene_reading.metres_per_unit(scene))
     _show_sunlight(scene, lamp, (colour, strength, diameter), enabled=enabled, driven=driven)
-    _last_sun_matrix[scene.name] = lamp_matrix_key(lamp)
+    _driven_values[scene.name] = (tuple(float(v) for v in direction), irradiance, colour, strength) if driven else None
+    _last_sun_matrix[scene.name] = lamp_matrix_key(lamp, scene)
     note_camera(scene)
 
 
@@ -147,21 +151,41 @@ def _show_sunlight(scene, lamp, values, *, enabled: bool, driven: bool) -> None:
         sun_lamp.release_lamp(scene)   # the lamp's own light back
 
 
-def lamp_matrix_key(lamp) -> tuple:
+def show_driven_values(scene) -> None:
+    """Write what the sun's drivers (:mod:`.apply.sun_drivers`) evaluate to after the last :func:`sync_scene`: the
+    sun's direction and E_sun parameters and, with Drive Sun Lamp, the lamp's colour and strength. For a script that
+    reads them before anything evaluates the scene (the next evaluation writes the same values over them); the
+    interface evaluates before every redraw and needs none of this."""
+    values = _driven_values.get(scene.name)
+    lamp = scene_reading.sun_object(scene)
+    if values is None or lamp is None:
+        return
+    direction, irradiance, colour, strength = values
+    parameters = scene_reading.groups().parameters
+    parameters.store_if_changed(scene, parameters.SUN_DIRECTION, direction)
+    parameters.store_if_changed(scene, parameters.SUN_IRRADIANCE, tuple(float(v) for v in np.atleast_1d(irradiance)))
+    if scene.atmos.drive_sun_lamp:
+        for name, value in (("color", tuple(float(v) for v in colour)), ("energy", float(strength))):
+            if sun_lamp.differs(getattr(lamp.data, name), value):
+                setattr(lamp.data, name, value)
+
+
+def lamp_matrix_key(lamp, scene) -> tuple:
     """The sun lamp's name and world matrix, to tell whether it moved since the last sync."""
     if lamp is None:
         return ()
-    return (lamp.name, *(tuple(row) for row in lamp.matrix_world))
+    return (lamp.name, *(tuple(row) for row in scene_reading.world_matrix(lamp, scene)))
 
 
 def sun_moved(scene) -> bool:
     """True when the sun lamp moved (or another lamp took over) since the last :func:`sync_scene`."""
-    return lamp_matrix_key(scene_reading.sun_object(scene)) != _last_sun_matrix.get(scene.name)
+    return lamp_matrix_key(scene_reading.sun_object(scene), scene) != _last_sun_matrix.get(scene.name)
 
 
 def _camera_z(scene) -> float | None:
     """The scene camera's world z (the Precise tables depend on its altitude), None without a camera."""
-    return None if scene.camera is None else round(float(scene.camera.matrix_world.translation.z), 6)
+    return None if scene.camera is None else round(float(scene_reading.world_matrix(scene.camera, scene).translation.z),
+                                                   6)
 
 
 def note_camera(scene) -> bool:

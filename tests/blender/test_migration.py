@@ -163,6 +163,18 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     settings.property_unset("ozone_column_du")
     settings.property_unset("render_mode")
 
+    for name in ("mie_scattering_per_km", "mie_absorption_per_km", "preset_name"):   # before the Clear preset's haze
+        settings.property_unset(name)
+    grey = tmp_path / "grey_haze.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(grey))
+    bpy.ops.wm.open_mainfile(filepath=str(grey))
+    settings = bpy.context.scene.atmos
+    np.testing.assert_allclose(settings.mie_scattering_per_km, [0.033] * 3, rtol=1e-6)
+    np.testing.assert_allclose(settings.mie_absorption_per_km, [0.0033] * 3, rtol=1e-6)
+    assert settings.preset_name == ""
+    for name in ("mie_scattering_per_km", "mie_absorption_per_km", "preset_name"):
+        settings.property_unset(name)
+
     settings.property_unset("quality")          # as a file saved before the change holds them: never set
     settings.property_unset("multiple_scattering")
     for name in ("wavelengths_nm", "rayleigh_scattering_per_km", "sun_irradiance_top"):  # before the spectral channels
@@ -183,6 +195,8 @@ def test_settings_saved_before_the_default_changed_keep_their_value(addon, tmp_p
     assert bpy.context.scene.atmos.ozone_column_du == pytest.approx(300.0)
     np.testing.assert_allclose(bpy.context.scene.atmos.wavelengths_nm, [648.1, 547.4, 443.1], rtol=1e-6)
     assert bpy.context.scene.atmos.render_mode == "PER_PIXEL"
+    assert bpy.context.scene.atmos.preset_name == "clear"
+    np.testing.assert_allclose(bpy.context.scene.atmos.mie_scattering_per_km, [0.03336, 0.04155, 0.05469], rtol=1e-6)
 
 
 def test_a_scene_saved_at_the_retired_balanced_level_opens_at_fast(addon, tmp_path, capsys):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import atmos_addon
+from atmos_addon import presets
 from atmos_addon.physics import Atmosphere
 
 from atmos_addon.blender import registration  # noqa: E402
@@ -43,7 +44,7 @@ def test_defaults_are_the_clear_atmosphere_in_per_km() -> None:
     atmos_addon.register()
     try:
         settings = bpy.context.scene.atmos
-        clear = Atmosphere()
+        clear = presets.load("clear").atmosphere   # the defaults are the Clear preset's
         assert not settings.enabled
         np.testing.assert_allclose(settings.rayleigh_scattering_per_km, clear.rayleigh_scattering * 1000, rtol=1e-6)
         np.testing.assert_allclose(settings.mie_scattering_per_km, clear.mie_scattering * 1000, rtol=1e-6)
@@ -55,8 +56,10 @@ def test_defaults_are_the_clear_atmosphere_in_per_km() -> None:
         assert settings.distance_scale == 1.0
         from atmos_addon.blender import settings_io
 
-        # The product's default sky holds the Earth's ozone; Atmosphere() is the seed's atmosphere without it.
-        assert clear.ozone_column_du == 0.0 and settings.ozone_column_du == pytest.approx(300.0)
+        # The product's default sky holds the Earth's ozone, the Clear preset's; Atmosphere() is the seed's
+        # atmosphere without it.
+        assert Atmosphere().ozone_column_du == 0.0
+        assert clear.ozone_column_du == pytest.approx(300.0) and settings.ozone_column_du == pytest.approx(300.0)
         assert settings_io.atmosphere_from_settings(settings).ozone_column_du == pytest.approx(300.0)
     finally:
         atmos_addon.unregister()

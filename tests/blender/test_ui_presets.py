@@ -246,7 +246,7 @@ def test_every_panel_draws_for_every_builtin_preset(user_presets):
         assert applies == list(BUILTINS)
     # with a user preset current, edited values, the effect on and a skipped material
     assert bpy.ops.atmos.preset_add(name="Mine") == {"FINISHED"}
-    scene.atmos.haze_visibility = 12000.0
+    scene.atmos.visibility_km = 12.0
     orchestrator.enable_effect(scene)
     item = scene.atmos.skipped_materials.add()
     item.name, item.reason = "Odd", "no output node"
@@ -352,9 +352,9 @@ def test_the_lamp_field_shows_the_lamp_in_use(user_presets):
     """Issue 29: with no lamp picked the Lamp field named nothing while Atmos used the first sun lamp; it now shows
     that lamp as its placeholder, and nothing once a lamp is picked."""
     scene = bpy.context.scene
-    assert ("placeholder", "sun_object", "No sun lamp: Atmos adds one") in draw_everything(scene)
+    assert ("placeholder", "sun_object", "None: Atmos adds one") in draw_everything(scene)
     sun = add_sun(scene)
-    assert ("placeholder", "sun_object", f"{sun.name} (first rendered sun)") in draw_everything(scene)
+    assert ("placeholder", "sun_object", sun.name) in draw_everything(scene)
     scene.atmos.sun_object = sun
     assert ("placeholder", "sun_object", "") in draw_everything(scene)
 
@@ -488,19 +488,73 @@ def test_apply_preset_sets_settings_within_float32_and_the_sun(user_presets):
         assert not preset_ops.is_modified(scene)
 
 
+def test_a_fresh_tick_shows_the_clear_presets_own_numbers(user_presets):
+    bpy.ops.wm.read_factory_settings(use_empty=True)   # no world, no sun: Atmos adds them
+    scene = bpy.context.scene
+    scene.atmos.enabled = True
+    assert scene.atmos.preset_name == "clear" and not preset_ops.is_modified(scene)
+    assert_settings_match(scene, presets.load("clear").atmosphere)
+    assert round(scene.atmos.visibility_km, 1) == 70.0   # the preset's stated visibility, in km
+
+
+def test_a_holdout_collection_is_named_in_the_panel_with_its_edge_error(user_presets):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    make_camera(scene)
+    held = bpy.data.collections.new("Foreground")
+    scene.collection.children.link(held)
+    make_plane(bpy.context.scene, "Plate", [(-1, 5, -1), (1, 5, -1), (1, 5, 1), (-1, 5, 1)])
+    plate = bpy.data.objects["Plate"]
+    for collection in plate.users_collection:
+        collection.objects.unlink(plate)
+    held.objects.link(plate)
+    scene.atmos.enabled = True
+    assert plan_module.NOTE_HOLDOUT not in facts.plan_of(scene).notes
+    scene.view_layers[0].layer_collection.children["Foreground"].holdout = True
+    assert plan_module.NOTE_HOLDOUT in facts.plan_of(scene).notes
+    lines = [call[1] for call in draw_everything(scene) if call[0] == "label"]
+    assert " ".join(ui_panel.wrapped(plan_module.NOTE_HOLDOUT)) == " ".join(
+        line for line in lines if line in ui_panel.wrapped(plan_module.NOTE_HOLDOUT))
+
+
+def test_eevees_depth_of_field_and_motion_blur_are_named_in_the_panel(user_presets):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    make_camera(scene)
+    scene.render.engine = EEVEE_ENGINE
+    scene.atmos.enabled = True
+    assert not any(note.startswith("Eevee blurs") for note in facts.plan_of(scene).notes)
+    scene.camera.data.dof.use_dof = True
+    scene.render.use_motion_blur = True
+    (note,) = [note for note in facts.plan_of(scene).notes if note.startswith("Eevee blurs")]
+    assert "depth of field up to 31 %" in note and "motion blur up to 26 %" in note
+    scene.render.engine = "CYCLES"
+    assert not any(note.startswith("Eevee blurs") for note in facts.plan_of(scene).notes)
+
+
 def test_haze_and_air_density_read_and_write_the_coefficients(user_presets):
     settings = bpy.context.scene.atmos
     bpy.ops.atmos.preset_apply(name="clear")
     assert settings.air_density == pytest.approx(1.0, rel=1e-5)
     clear = presets.load("clear").atmosphere  # the channels stand for 648.1, 547.4, 443.1 nm: read at 550 nm
-    assert settings.haze_visibility == pytest.approx(3.912 / extinction_550_per_m(clear), rel=1e-5)
-    assert settings.haze_visibility == pytest.approx(70_000.0, rel=2e-4)  # the preset's stated visibility
+    assert settings.visibility_km == pytest.approx(3.912 / extinction_550_per_m(clear) / 1000.0, rel=1e-5)
+    assert settings.visibility_km == pytest.approx(70.0, rel=2e-4)  # the preset's stated visibility
     ratio = np.divide(settings.mie_absorption_per_km, settings.mie_scattering_per_km)
-    settings.haze_visibility = 10000.0
-    assert settings.haze_visibility == pytest.approx(10000.0, rel=1e-4)
-    assert len(set(settings.mie_scattering_per_km)) == 1  # grey
+    colour = np.asarray(clear.mie_scattering) / np.max(clear.mie_scattering)
+    np.testing.assert_allclose(settings.haze_colour, colour, rtol=1e-5)
+    settings.visibility_km = 10.0
+    assert settings.visibility_km == pytest.approx(10.0, rel=1e-4)
+    np.testing.assert_allclose(settings.haze_colour, colour, rtol=1e-5)   # the haze keeps its colour
     np.testing.assert_allclose(np.divide(settings.mie_absorption_per_km, settings.mie_scattering_per_km), ratio,
                                rtol=1e-5)
+    settings.haze_colour = (1.0, 0.8, 0.5)   # a warm dust: the visibility and the absorption ratios stay
+    np.testing.assert_allclose(settings.haze_colour, (1.0, 0.8, 0.5), rtol=1e-5)
+    assert settings.visibility_km == pytest.approx(10.0, rel=1e-4)
+    np.testing.assert_allclose(np.divide(settings.mie_absorption_per_km, settings.mie_scattering_per_km), ratio,
+                               rtol=1e-5)
+    settings.haze_colour = (0.0, 0.0, 0.0)   # black has no tint: clamped, the haze stays a haze of that visibility
+    assert settings.visibility_km == pytest.approx(10.0, rel=1e-4)
+    assert min(settings.mie_scattering_per_km) > 0.0
     rayleigh = np.array(settings.rayleigh_scattering_per_km)
     settings.air_density = 0.5
     np.testing.assert_allclose(settings.rayleigh_scattering_per_km, rayleigh * 0.5, rtol=1e-5)
@@ -511,7 +565,7 @@ def test_save_round_trips_rename_and_delete(user_presets):
     scene = bpy.context.scene
     add_sun(scene, 25.0)
     bpy.ops.atmos.preset_apply(name="overcast")
-    scene.atmos.haze_visibility = 7000.0
+    scene.atmos.visibility_km = 7.0
     scene.atmos.mie_g = (0.5, 0.6, 0.7)
     assert bpy.ops.atmos.preset_add(name="Look A", include_sun=True) == {"FINISHED"}
     saved = snapshot(scene)
@@ -587,7 +641,7 @@ def test_bad_preset_files_are_refused_and_change_nothing(user_presets, tmp_path,
     scene = bpy.context.scene
     add_sun(scene, 33.0)
     bpy.ops.atmos.preset_apply(name="overcast")
-    scene.atmos.haze_visibility = 5000.0
+    scene.atmos.visibility_km = 5.0
     before = snapshot(scene)
     bad = tmp_path / "bad.toml"
     bad.write_text(text, encoding="utf-8")
@@ -646,7 +700,7 @@ def test_contact_sheet_size_cells_labels_and_scene_restored(user_presets, tmp_pa
     scene = bpy.context.scene
     tiny_scene(scene, "CYCLES", 16, 16)
     bpy.ops.atmos.preset_apply(name="sunset")
-    scene.atmos.haze_visibility = 30000.0
+    scene.atmos.visibility_km = 30.0
     before = snapshot(scene)
     seen = []
     path = contact_sheet.render_contact_sheet(scene, ["clear", "mars"], [60.0, 5.0], cell_size=(32, 18),

@@ -116,6 +116,8 @@ def scene_materials(scene) -> tuple[list, list[str]]:
     if layers and all(material is not None for material in overrides):
         bare = []
     if instances_geometry() or scene.background_set is not None:   # a set scene's objects render too
+        for layer in layers:
+            layer.update()   # what the instances render is only in the evaluated graph: a script's new objects too
         graphs = [layer.depsgraph for layer in layers]
         for depsgraph in graphs:
             for material in evaluated_materials(depsgraph):

@@ -40,12 +40,8 @@ MAX_TEXTURE_SIZE = 16384
 TILES_PER_COLUMN = MAX_TEXTURE_SIZE // DEFAULT_SHAPE.altitudes
 _KEY = "atmos_bake_key"
 _TILES = "atmos_tiles"
-#: Bumped when the same inputs bake a different table (2: key tiles blended instead of a tile per frame, 3: the
-#: camera's sky view after the sky view, 4: the multiple-scattering table's first order scattered once more by
-#: direction, stop 47, 5: its sun-cosine nodes even in elevation above 23 deg and one cell below -23 deg, stop 48,
-#: 6: their cells growing geometrically from the horizon within +-23 deg, stop 49, 7: the forward cut growing with
-#: the haze's g, stop 52, 8: each row's distance columns from its vertical ray, stop 55), so a file saved
-#: before re-bakes on opening (:func:`follow`), its key tiles included.
+#: The table layout's version, bumped whenever the same inputs bake a different table (CHANGELOG.md lists each), so
+#: that a file saved with an older layout re-bakes on opening (:func:`follow`), its key tiles included.
 _LAYOUT = 8
 #: Image property: the :data:`_LAYOUT` its tiles were written with.
 _LAYOUT_KEY = "atmos_layout"
@@ -54,7 +50,7 @@ _LAYOUT_KEY = "atmos_layout"
 def _camera_altitude_m(scene, metres_per_unit: float) -> float:
     """The scene camera's altitude above sea level at the current frame, m (origin altitude + z; 0 without one)."""
     camera = scene.camera
-    z = float(camera.matrix_world.translation.z) if camera is not None else 0.0
+    z = float(scene_reading.world_matrix(camera, scene).translation.z) if camera is not None else 0.0
     return float(scene.atmos.origin_altitude) + z * metres_per_unit
 
 
@@ -117,7 +113,7 @@ def _keyed_inputs(scene, metres_per_unit: float) -> list | None:
     for frame in range(scene.frame_start, scene.frame_end + 1):
         z = motion_path.world_matrix(camera, frame).translation.z if camera is not None else 0.0
         if sun is None:
-            direction, _ = scene_reading.direction_of(None)
+            direction, _ = scene_reading.direction_of(None, scene)
         else:
             direction, _ = scene_reading.direction_from_matrix(motion_path.world_matrix(sun, frame), sun.name)
         inputs.append(_rounded(frame, origin + float(z) * metres_per_unit, direction))
@@ -130,8 +126,8 @@ def motion_key(scene) -> tuple:
     between cameras, the scale and the origin's altitude, and whether anything moves over time. Cheap: no frame is
     evaluated. Not a digest of the animation itself, which nothing between the two bakes edits (:class:`Sampled`)."""
     sun, camera = scene_reading.sun_object(scene), scene.camera
-    return (tuple((obj.as_pointer(), tuple(v for row in obj.matrix_world for v in row)) if obj is not None else None
-                  for obj in (sun, camera)),
+    return (tuple((obj.as_pointer(), tuple(v for row in scene_reading.world_matrix(obj, scene) for v in row))
+                  if obj is not None else None for obj in (sun, camera)),
             scene.frame_start, scene.frame_end, scene.frame_current,
             tuple((marker.frame, marker.camera.as_pointer() if marker.camera is not None else 0)
                   for marker in scene.timeline_markers),

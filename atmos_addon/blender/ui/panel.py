@@ -161,12 +161,12 @@ def _active_when_on(layout, settings):
 
 
 def lamp_placeholder(scene) -> str:
-    """What the empty Lamp field shows: the lamp Atmos uses instead (the first sun lamp that renders), or that none is
-    there."""
+    """What the empty Lamp field shows: the name of the lamp Atmos uses instead (the first sun lamp that renders; the
+    field's tooltip says so), or that none is there."""
     lamp = scene_reading.sun_object(scene)
     if scene.atmos.sun_object is not None:
         return ""
-    return f"{lamp.name} (first rendered sun)" if lamp is not None else "No sun lamp: Atmos adds one"
+    return lamp.name if lamp is not None else "None: Atmos adds one"
 
 
 def viewport_compositor_always(context) -> bool:
@@ -220,17 +220,14 @@ class ATMOS_PT_atmosphere_air(_SubPanel, bpy.types.Panel):
         settings = _settings(context)
         layout = _active_when_on(_split(self.layout), settings)
         column = layout.column()
-        column.prop(settings, "haze_visibility", text="Visibility")
+        column.prop(settings, "visibility_km", text="Visibility, km")
+        column.prop(settings, "haze_colour", text="Haze Colour")
         column.prop(settings, "air_density")
-        column.separator()
-        column = layout.column()
-        _channels(column, settings, "rayleigh_scattering_per_km", "Air, 1/km")
-        _channels(column, settings, "mie_scattering_per_km", "Haze, 1/km")
-        _channels(column, settings, "mie_absorption_per_km", "Absorb, 1/km")
 
 
 class ATMOS_PT_atmosphere_advanced(_SubPanel, bpy.types.Panel):
-    """Phase, layer heights, planet and channel wavelengths."""
+    """The coefficients behind Visibility, Haze Colour and Air Density; phase, layer heights, planet and
+    channel wavelengths."""
 
     bl_label = "Advanced"
     bl_idname = "ATMOS_PT_atmosphere_advanced"
@@ -241,6 +238,10 @@ class ATMOS_PT_atmosphere_advanced(_SubPanel, bpy.types.Panel):
         settings = _settings(context)
         layout = _active_when_on(_split(self.layout), settings)
         column = layout.column()
+        _channels(column, settings, "rayleigh_scattering_per_km", "Air, 1/km")
+        _channels(column, settings, "mie_scattering_per_km", "Haze, 1/km")
+        _channels(column, settings, "mie_absorption_per_km", "Absorb, 1/km")
+        column.separator()
         _channels(column, settings, "mie_g", "Haze g")
         column.separator()
         column.prop(settings, "rayleigh_scale_height", text="Air Layer")
