@@ -33,13 +33,13 @@ MODES = ("COMPOSITOR", "PER_PIXEL", "IN_RENDER")
 #: The modes whose materials write AOVs that the compositor reads.
 AOV_MODES = ("COMPOSITOR", "PER_PIXEL")
 QUALITIES = ("FAST", "PRECISE", "AUTO")
-#: The levels a scene's aerial perspective is built at (Balanced was retired in December 2026: against the complete
-#: reference it was no more accurate than Fast at Precise's cost; a file saved with it opens at Fast, which shares
-#: its sky: ``blender.migration``).
+#: The levels a scene's aerial perspective is built at. No Balanced level: against the complete reference it is no
+#: more accurate than Fast at Precise's cost; a file saved with it opens at Fast, which shares its sky
+#: (``blender.migration``).
 LEVELS = ("fast", "precise")
-#: Why "balanced" is no longer a quality (the migration's console note, the CLI's and the API's refusals).
-RETIRED_BALANCED_NOTE = ("the Balanced quality level was retired in December 2026 (against every scattering order "
-                         "it was no more accurate than Fast, at Precise's cost)")
+#: Why "balanced" is not a quality (the migration's console note, the CLI's and the API's refusals).
+RETIRED_BALANCED_NOTE = ("the Balanced quality level was retired (against every scattering order it was no more "
+                         "accurate than Fast, at Precise's cost)")
 EEVEE_ENGINES = frozenset({"BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"})
 
 #: The view-layer AOVs (name, kind). Compositor mode: the per-sample transmittance, its square and cube (the

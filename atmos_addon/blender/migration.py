@@ -10,10 +10,10 @@ the quality, rebuild its node groups and look different). Two rules keep every f
 - :func:`restore_former_defaults`: after a file loads, a scene with the effect on whose such setting was never set
   was saved before the default changed, so it gets the default it was saved under (:data:`FORMER_DEFAULTS`).
 
-A retired choice is upgraded in place (:func:`upgrade_retired_settings`): the Balanced quality level (December
-2026) opens as Fast, which shares Balanced's sky (the virtual dome), so the file's sky and its other scenes stay as
-they were and only the haze's density profile changes (Precise would re-make the sky: the sky groups are shared by
-the scenes of a file, and the Precise sky is another model).
+A retired choice is upgraded in place (:func:`upgrade_retired_settings`): the Balanced quality level opens as
+Fast, which shares Balanced's sky (the virtual dome), so the file's sky and its other scenes stay as they were and
+only the haze's density profile changes (Precise would re-make the sky: the sky groups are shared by the scenes of
+a file, and the Precise sky is another model).
 """
 
 from __future__ import annotations

@@ -430,8 +430,8 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         name="Quality",
         description="How the aerial perspective follows the atmosphere's density along each view ray",
         items=(
-            # Numbered: the file stores the number. 1 was Balanced, retired in December 2026 (a file saved with it
-            # opens at Fast: migration.upgrade_retired_settings).
+            # Numbered: the file stores the number. 1 was Balanced, a retired level (a file saved with it opens at
+            # Fast: migration.upgrade_retired_settings).
             ("FAST", "Fast", "Constant sea-level density along the ray (Hoffman & Preetham 2002), single "
                              "scattering: ground-level views of nearby land; the cheapest graph", "", 0),
             ("PRECISE", "Precise", "Scattering integrated numerically over the curved planet, baked into a table "

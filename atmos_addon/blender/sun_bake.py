@@ -146,8 +146,8 @@ def cancel_pending() -> None:
 
 
 def bake_sun_animation(scene: bpy.types.Scene, frame_start: int | None = None, frame_end: int | None = None) -> int:
-    """Record the animation of the sun that the Precise key tiles follow, and remove the per-frame keys an Atmos
-    before December 2026 wrote.
+    """Record the animation of the sun that the Precise key tiles follow, and remove the per-frame keys an older
+    Atmos wrote.
 
     Nothing is keyed: the sun's direction and E_sun, and the lamp's colour and strength, are drivers on the lamp
     (:mod:`.apply.sun_drivers`), which a render without the add-on (``blender -b file.blend -f N`` on a farm)

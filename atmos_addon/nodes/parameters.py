@@ -61,9 +61,9 @@ PRECISE_ATLAS = "atmos_precise_atlas"
 #: The parameters of the aerial-perspective group.
 AERIAL_PARAMETER_NAMES = (BETA_RAYLEIGH, BETA_MIE, BETA_MIE_ABSORPTION, MIE_G, SUN_DIRECTION, SUN_IRRADIANCE,
                           METRES_PER_UNIT, PLANET_RADIUS, SCALE_HEIGHTS)
-#: Parameters of the Balanced level, retired in December 2026 (the origin's altitude and the sun's ground optical
-#: depths per species): nothing reads or writes them; :func:`clear_shader_parameters` removes them, with their
-#: keys, from files saved before.
+#: Parameters of the retired Balanced level (the origin's altitude and the sun's ground optical depths per
+#: species): nothing reads or writes them; :func:`clear_shader_parameters` removes them, with their keys, from files
+#: saved with them.
 RETIRED_PARAMETER_NAMES = ("atmos_origin_altitude", "atmos_sun_optical_depth_rayleigh", "atmos_sun_optical_depth_mie")
 #: The parameters only the Precise level reads (written by the add-on's table bake, keyed with constant
 #: interpolation when the camera or the sun moves, never by :func:`keyframe_shader_parameters`).

@@ -20,8 +20,8 @@ from .graph import GraphBuilder, Socket
 
 
 #: Quality levels the group can be built for: the paper's constant density, or the frame's baked table
-#: (:mod:`.precise`). Balanced (densities falling along the curved ray in closed form) was retired in December 2026:
-#: against the complete reference it was no more accurate than Fast at Precise's cost (docs/quality.md).
+#: (:mod:`.precise`). No Balanced level (densities falling along the curved ray in closed form): against the
+#: complete reference it is no more accurate than Fast at Precise's cost (docs/quality.md).
 LEVELS = ("fast", "precise")
 
 

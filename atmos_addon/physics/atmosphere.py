@@ -48,7 +48,8 @@ from .spectrum import (CHANNEL_WAVELENGTHS_NM, DEFAULT_OZONE_PEAK_ALTITUDE_M, OZ
 #: Default colour-channel wavelengths (R, G, B), nm: the wavelengths that stand for Blender's Rec.709 channels
 #: under sunlight, 648.1, 547.4, 443.1 (:data:`~atmos_addon.physics.spectrum.CHANNEL_WAVELENGTHS_NM`).
 DEFAULT_WAVELENGTHS_NM = tuple(float(value) for value in CHANNEL_WAVELENGTHS_NM)
-#: The wavelengths of the seed and of Atmos before December 2026, nm (Bruneton 2008's and Hillaire 2020's choice).
+#: The seed's wavelengths, nm (Bruneton 2008's and Hillaire 2020's choice): the former default, which a file saved
+#: under it keeps (``blender.migration``).
 SEED_WAVELENGTHS_NM = (680.0, 550.0, 440.0)
 #: Sea-level scale height of the Rayleigh layer, m (column-consistent, see module docstring).
 DEFAULT_RAYLEIGH_SCALE_HEIGHT_M = rayleigh_column_scale_height()
@@ -69,7 +70,8 @@ DEFAULT_SUN_LUMINANCE_TOP = 4.5
 #: Sun irradiance above the atmosphere per channel, W/m^2 in Blender's sun-strength unit: the solar spectrum's
 #: colour in linear Rec.709 at luminance 4.5, (4.94, 4.40, 4.24) (see module docstring).
 DEFAULT_SUN_IRRADIANCE_TOP = tuple(float(value) for value in DEFAULT_SUN_LUMINANCE_TOP * SUN_TOP_RGB)
-#: The seed's sun above the atmosphere (white, 4.5 per channel; Atmos before December 2026).
+#: The seed's sun above the atmosphere (white, 4.5 per channel): the former default, which a file saved under it
+#: keeps (``blender.migration``).
 SEED_SUN_IRRADIANCE_TOP = 4.5
 
 _CHANNELS = 3

@@ -43,12 +43,13 @@ Table axes (:class:`TableShape`)
       stays above the ground inside the atmosphere (:func:`max_distance`), d beyond D clamped; the power p
       (:func:`column_power`) goes from 3 at the ground's row (columns crowded near the camera: 35 m, 280 m,
       940 m... at D = 1000 km) to 2 at the top's (the sky's long rays near the horizon). So every cell is a ray that
-      ends at its row's altitude, and the cells next to a steep ray are steep rays too. Until December 2026 the
-      columns were D (k / (N_d - 1))^2 for every row: a steep ray's neighbours were a vertical ray cut short and rays
-      of far lower elevation, whose multiply scattered light differs (rays to points kilometres up on Mars 14-17 %
-      of the horizon sky off at the 99th percentile, now 2.5-9.0 %: ``tools/measure_sun_free_table.py``,
-      docs/quality.md). The key tiles of a camera whose frames blend keys of different altitudes keep those
-      columns (:attr:`Tile.vertical_columns` False): two keys' texels then map rays of one length.
+      ends at its row's altitude, and the cells next to a steep ray are steep rays too. With the same columns for
+      every row, D (k / (N_d - 1))^2, a steep ray's neighbours are a vertical ray cut short and rays of far lower
+      elevation, whose multiply scattered light differs (rays to points kilometres up on Mars 14-17 % of the horizon
+      sky off at the 99th percentile, against 2.5-9.0 % with each row's own columns:
+      ``tools/measure_sun_free_table.py``, docs/quality.md). The key tiles of a camera whose frames blend keys of
+      different altitudes use those shared columns (:attr:`Tile.vertical_columns` False): two keys' texels then map
+      rays of one length.
 Within one azimuth slice the shader blends (row, column) bilinearly from four unfiltered texels.
 
 The sky view (:func:`sky_view`, the tile's last columns): the Precise sky by view direction (zenith rows crowded at
@@ -355,13 +356,12 @@ def grid_cut_deg(g: ArrayLike) -> np.ndarray:
     """The forward cut per channel, deg: :data:`GRID_FORWARD_CUT_DEG` + :data:`GRID_CUT_DEG_PER_G` (g - 0.76), within
     :data:`GRID_CUT_RANGE_DEG`.
 
-    Why it follows g: one angle for every channel left Mars's dust (g 0.63 / 0.68 / 0.78) with red and green 2-6 %
-    too bright and blue 2-10 % too dark at a 2 deg sun (5.6 % in luminance against 192 000 reference paths); a
-    narrower cut for all channels darkens red and green but blue too (25 deg: 3.3 %, xy 0.0124), so the sweep went per
-    channel: the less forward a channel's haze, the narrower the cut it wants (Mars 25 / 25 / 30 deg: 3.6 %, xy
-    0.0073; the overcast's g 0.6 was already best at 20 deg, 3.5 % against 3.8 %). This line through them gives
-    Mars 22.2 / 25.2 / 31.2 deg (3.65 %, xy 0.0058) and leaves every case of g 0.76 as it was (docs/quality.md,
-    stop 52)."""
+    Why it follows g: one angle for every channel (30 deg) leaves Mars's dust (g 0.63 / 0.68 / 0.78) with red and
+    green 2-6 % too bright and blue 2-10 % too dark at a 2 deg sun (5.6 % in luminance against 192 000 reference
+    paths); a narrower cut for all channels darkens red and green but blue too (25 deg: 3.3 %, xy 0.0124). Swept
+    per channel, the less forward a channel's haze, the narrower the cut it wants (Mars 25 / 25 / 30 deg: 3.6 %, xy
+    0.0073; the overcast's g 0.6 is best at 20 deg, 3.5 % against 3.8 %). This line through them gives Mars
+    22.2 / 25.2 / 31.2 deg (3.65 %, xy 0.0058) and every case of g 0.76 the 30 deg cut (docs/quality.md)."""
     g = np.asarray(g, dtype=np.float64)
     return np.clip(GRID_FORWARD_CUT_DEG + GRID_CUT_DEG_PER_G * (g - GRID_CUT_REFERENCE_G), *GRID_CUT_RANGE_DEG)
 
@@ -410,7 +410,7 @@ def _cell_weights(views: np.ndarray, n_zenith: int, n_azimuth: int, phase: Calla
     of the phase function over each cell, the weight a field constant over the cell takes. Read at the cells' centres
     instead, a lobe narrower than a cell is weighed by where the centres fall (the haze's g 0.78 summed to 0.95-1.00
     over the grid before normalising, by view direction); with the cell averages alone the accuracy bench's
-    Martian sunset went from 18.7 % to 16.7 % (stop 47)."""
+    Martian sunset is 16.7 % against 18.7 % with the centres (measured with the second order as a P1 field)."""
     _, w = np.polynomial.legendre.leggauss(n_zenith)
     edges = np.concatenate([[0.0], np.cumsum(w * 0.5)])               # the Gauss-Legendre cells of z in 0..1
     u = (np.arange(sub) + 0.5) / sub
@@ -542,7 +542,7 @@ def solve_orders(transport: np.ndarray, source: np.ndarray, *, tolerance: float 
 
 
 #: The sun cosines beyond which the multiple-scattering table's nodes leave the terminator's spacing, as a share of
-#: its resolution: with 33 (16 cells a side of the former layout) K = 10 nodes a side up to 23 deg.
+#: n = (resolution - 1) / 2: with 33 (n = 16) K = 10 nodes a side up to 23 deg.
 TERMINATOR_SHARE = 0.625
 #: How fast the band's cells grow away from the horizon: the k-th node of K lies at
 #: band (exp(a k / K) - 1) / (exp(a) - 1), each cell exp(a / K) times the one before (1.22x with K = 10).
@@ -562,23 +562,24 @@ class SunCosineNodes:
     most at that altitude on the ground and 4e-7 at 100 km; Mars's 4e-6 on the ground, 3e-3 at 100 km, where its air
     is thinnest). With half the resolution (17: the first look's tables) the nodes are every other one of these.
 
-    Until stop 49 the band was mu_s = +-(k / n)^2 (0.2, 0.9, 2.0, 3.6, 5.6, 8.1 ... deg): crowded within a degree
-    of the horizon, 2 deg cells where the blue hour lies. Against the same table at resolution 129, over suns 9 deg
-    below the horizon to the zenith (the luminance of what a camera 2 m up sees at 1 km, 30 km and of the sky, 5 view
-    elevations x 3 azimuths; ``tools/measure_sun_nodes.py``), its interpolation was off by up to 9.5 / 12.2 / 3.2 /
-    11.7 % (clear, overcast, Mars, sunset presets) with the sun 1-6 deg down, where these nodes give 5.8 / 7.4 / 2.8
-    / 7.1 %; from 1 deg down to 3 deg up 1.6 / 1.6 / 0.6 / 2.0 % -> 1.2 / 1.0 / 0.4 / 1.3 %; 3-30 deg 1.5 / 1.6 /
-    1.1 / 1.9 % -> 0.8 / 1.4 / 0.9 / 1.1 %; 6-9 deg down 17 / 39 / 7.4 / 20 % -> 13 / 27 / 6.0 / 16 %; the day's
-    cells are the same. Against the complete reference the blue hour went 5.3 -> 3.8 %.
-    Before stop 48 the whole range was mu_s = sign(u) u^2 with u even in -1 .. 1: its last cell ran from a sun 61.5
-    deg up to the zenith, where the view's azimuth from the sun means nothing, so a sun 80 deg up read a horizontal
-    view 88 % from the zenith node, which holds no difference between toward and away from the sun: Mars at noon was
-    1.05x too bright away from the sun and 0.96x toward it (4.8 % against the complete reference at 64 000 paths;
-    0.3 % with even day cells).
+    A band even in sqrt|mu_s|, mu_s = +-(k / n)^2 (0.2, 0.9, 2.0, 3.6, 5.6, 8.1 ... deg), crowds within a degree
+    of the horizon and leaves 2 deg cells where the blue hour lies. Against the same table at resolution 129, over
+    suns 9 deg below the horizon to the zenith (the luminance of what a camera 2 m up sees at 1 km, 30 km and of the
+    sky, 5 view elevations x 3 azimuths; ``tools/measure_sun_nodes.py``), its interpolation is off by up to 9.5 /
+    12.2 / 3.2 / 11.7 % (clear, overcast, Mars, sunset presets) with the sun 1-6 deg down, where these nodes give
+    5.8 / 7.4 / 2.8 / 7.1 %; from 1 deg down to 3 deg up 1.6 / 1.6 / 0.6 / 2.0 % -> 1.2 / 1.0 / 0.4 / 1.3 %; 3-30
+    deg 1.5 / 1.6 / 1.1 / 1.9 % -> 0.8 / 1.4 / 0.9 / 1.1 %; 6-9 deg down 17 / 39 / 7.4 / 20 % -> 13 / 27 / 6.0 /
+    16 %; the day's cells are the same. Against the complete reference the blue hour is 5.3 % with that band, 3.8 %
+    with these nodes.
+    Even in sqrt|mu_s| over the whole range (mu_s = sign(u) u^2, u even in -1 .. 1), the last cell would run from a
+    sun 61.5 deg up to the zenith, where the view's azimuth from the sun means nothing, so a sun 80 deg up would read
+    a horizontal view 88 % from the zenith node, which holds no difference between toward and away from the sun:
+    Mars at noon 1.05x too bright away from the sun and 0.96x toward it (4.8 % against the complete reference at
+    64 000 paths; 0.3 % with even day cells).
 
-    Between two nodes a cosine's fractional index is linear in the sun's elevation (in sqrt|mu_s| until stop 48:
-    the same nodes read so gave the overcast 1 deg sun 3.8 % instead of 2.4 %, the Martian sunset 6.0 % instead of
-    5.5 %, the blue hour's chromaticity 0.0101 instead of 0.0099, its luminance 5.3 % instead of 5.5 %)."""
+    Between two nodes a cosine's fractional index is linear in the sun's elevation (read linearly in sqrt|mu_s|,
+    the same nodes give the overcast 1 deg sun 3.8 % instead of 2.4 %, the Martian sunset 6.0 % instead of 5.5 %,
+    the blue hour's chromaticity 0.0101 instead of 0.0099, its luminance 5.3 % instead of 5.5 %)."""
 
     resolution: int = 33
 
@@ -588,7 +589,7 @@ class SunCosineNodes:
 
     @functools.cached_property
     def _layout(self) -> tuple[int, int]:
-        """(n, K): cells a side of the former layout, terminator cells a side."""
+        """(n, K): n = (resolution - 1) / 2, the terminator's cells a side."""
         n = (self.resolution - 1) // 2
         return n, max(2, round(TERMINATOR_SHARE * n))
 
@@ -596,7 +597,7 @@ class SunCosineNodes:
     def cosines(self) -> np.ndarray:
         """mu_s of the nodes, ascending, from -1 to 1: 1 + K + 1 + K + K of them."""
         n, k = self._layout
-        edge = math.asin((k / n) ** 2)    # 23.0 deg: where the former layout's band ended (the same day cells)
+        edge = math.asin((k / n) ** 2)    # 23.0 deg: the band's edge, mu_s = (K / n)^2
         side = edge * np.expm1(TERMINATOR_GROWTH * np.arange(1, k + 1) / k) / math.expm1(TERMINATOR_GROWTH)
         elevations = np.concatenate([[-0.5 * np.pi], -side[::-1], [0.0], side,
                                      np.linspace(edge, 0.5 * np.pi, k + 1)[1:]])
@@ -656,13 +657,12 @@ class MultipleScatteringTable:
 
         L_2(x, w) = integral T' (beta_R n_R S_1R + beta_M n_M S_1M)(p, w) dt + T'_g albedo E_1(ground point) / pi
 
-      with E_1 the ground's irradiance from L_1. Until stop 47 the second order was the P1 field's as well: a field as
-      peaked as the haze's light around a low sun (its aureole) is far from J + 3 H . w, and the delta cut, which
-      keeps all of the peak on the sun's line, left the light of a Martian sunset 1.13x too bright toward the sun
-      and 0.97x away (0.9x in blue). With the whole peak resolved (f_c = 0) the grid spread the aureole over its
-      22.5 deg cells: the Martian sunset within 3 % but an Earth sunset's red toward the sun 0.8-0.87x and the blue
-      hour 9 %. The cut between the two was swept over 0-45 deg (docs/quality.md): 20-35 deg improve every low-sun
-      case.
+      with E_1 the ground's irradiance from L_1. The second order is not left to the P1 field: a field as peaked as
+      the haze's light around a low sun (its aureole) is far from J + 3 H . w, and the delta cut, which keeps all of
+      the peak on the sun's line, leaves the light of a Martian sunset 1.13x too bright toward the sun and 0.97x
+      away (0.9x in blue). With the whole peak resolved (f_c = 0) the grid spreads the aureole over its 22.5 deg
+      cells: the Martian sunset within 3 % but an Earth sunset's red toward the sun 0.8-0.87x and the blue hour 9 %.
+      The cut between the two was swept over 0-45 deg (docs/quality.md): 20-35 deg improve every low-sun case.
     * The third and higher orders: at every node the light of the second and higher orders is described by its mean
       radiance J and its first moment H = (1 / 4 pi) integral L w dOmega (two components, up and toward the sun: the
       light is symmetric about the sun's plane), the P1 field L(w) ~ J + 3 H . w, and a point that scatters it sends
@@ -691,56 +691,42 @@ class MultipleScatteringTable:
     up to the direction sampling, the third up to the sampling and the cone f_c; the fourth and higher are a P1 field
     at their last-but-one point.
 
-    Measured against the complete reference (``tools/bench_accuracy.py --paths 4000``, Monte Carlo, every order;
-    worst pixel luminance error, docs/quality.md), three steps:
+    Measured against the complete reference (``tools/bench_accuracy.py``, Monte Carlo, every order; worst pixel
+    luminance error, docs/quality.md): at 4000 paths by day 1.1-2.0 %; against more paths the blue hour 3.8 % (xy
+    0.0093) and the Martian sunset 3.7 % (xy 0.0058) at 192 000 (two seeds), the overcast 1 deg sun 2.9 % at 96 000
+    (its reference's noise 1.1-1.4 % a ray), Mars at noon 0.4 % at 64 000. The simpler schemes it improves on, at
+    4000 paths:
 
-    * Hillaire 2020's Psi_ms = L_2 / (1 - f_ms), in-scattered isotropically (this table until December 2026): his
-      series assumes the higher orders at x are those of a medium lit everywhere like x (A J ~ f_ms J(x)), which
-      misses the light that enters a thick haze from the lit sky above and diffuses down to where the sun no
-      longer reaches. By day 1.2-6.9 %, the sunsets 19 % / 31 %, blue hour 68 %, overcast 1 deg sun 82 %, Mars
-      sunset 81 %.
+    * Hillaire 2020's Psi_ms = L_2 / (1 - f_ms), in-scattered isotropically: his series assumes the higher orders
+      at x are those of a medium lit everywhere like x (A J ~ f_ms J(x)), which misses the light that enters a thick
+      haze from the lit sky above and diffuses down to where the sun no longer reaches. By day 1.2-6.9 %, the
+      sunsets 19 % / 31 %, blue hour 68 %, overcast 1 deg sun 82 %, Mars sunset 81 %.
     * Every order carried between the nodes as an isotropic mean radiance (J alone, the true extinction): by day
       1.1-3.0 %, the sunsets 5.4 % / 6.6 %, Mars noon 9.7 %, blue hour 23 %, overcast 34 %, Mars sunset 39 %. An
       isotropic third order cannot hold that the light of a forward-scattering haze at a low sun keeps travelling
       away from the sun: the overcast 0.6-0.8x the reference, Mars at sunset 0.6x toward the sun and 1.2-1.9x away.
-    * With the first moment and the delta-Eddington split (stops 44-46): by day 1.1-2.1 %, the sunsets 1.7 % /
-      1.6 %, Mars noon 5.5 %, overcast 4.5 %, blue hour 8.7 %, Mars sunset 18 % (at 24 altitudes and 16 steps;
-      32 and 24 gave the same within 0.12 point but the overcast's 5.7 %). The first moment alone (the true
-      phase function's g, no delta cut) swung Mars the other way (0.3-0.4x away from the sun in blue: a P1 field of
-      a peaked phase function goes negative behind it) and left the overcast 0.85-0.95x; the delta cut alone
-      (f = g, an isotropic rest) 1.2-1.6x too bright.
-    * With the first two orders by direction and the haze's peak cut at 30 deg for the second (this table, stop
-      47): by day 1.1-2.0 %, the sunsets 2.0 % / 1.6 %, Mars noon 5.1 %, overcast 3.4 %, blue hour 8.2 % (the
-      reference's own noise 7.7 % at these paths), Mars sunset 6.1 %. Against 4x the paths (96 000 a ray and
-      channel): overcast 3.8 %, blue hour 5.3 % (xy 0.0101), Mars sunset 6.0 % (xy 0.0102), where the table before
-      gave 5.4 %, 8.2 % (xy 0.0146) and 18.7 %.
-    * With the sun-cosine nodes of :class:`SunCosineNodes` (stop 48: even in elevation above 23 deg, one cell below
-      -23 deg, read linearly in the elevation; 32 nodes for 33, the same build time): Mars noon 0.3 % (4.8 % against
-      64 000 paths before), and against 96 000 paths the overcast 2.4 %, the blue hour 5.5 % (xy 0.0099), Mars sunset
-      5.5 % (xy 0.0101); the blue hour and the overcast each have one ray-channel of 36 and 48 beyond three
-      standard errors of the reference (5 and 9 before).
-    * With the terminator's cells growing geometrically (stop 49, :class:`SunCosineNodes`; the same 32 nodes and
-      build time, the day's nodes unchanged): against 192 000 paths (two seeds) the blue hour 3.8 % (xy 0.0093;
-      5.3 % and 0.0092 before), the Martian sunset 5.6 % (xy 0.0097; 5.75 %); against 96 000 paths the overcast
-      2.6 % (2.4 %: its 1 deg sun sat by a node, 0.9 deg, that the new nodes, 0.8 and 1.8 deg, moved away from;
-      over every sun the new nodes' interpolation is the closer, :class:`SunCosineNodes`).
-    * With the forward cut following each channel's g (stop 52, :func:`grid_cut_deg`: 30 deg at the clear haze's
-      0.76, so every Earth case but the overcast is unchanged; Mars's dust 22 / 25 / 31 deg): the Martian sunset
-      3.7 % (xy 0.0058; 5.6 % and 0.0097 before) against 192 000 paths, the overcast 2.9 % against 96 000 (2.6 %
-      before: 0.3 point, within its reference's noise of 1.1-1.4 % a ray), Mars at noon 0.4 % against 64 000 (0.3 %).
+    * The first moment and the delta-Eddington split from the second order on (the second order a P1 field too): by
+      day 1.1-2.1 %, the sunsets 1.7 % / 1.6 %, Mars noon 5.5 %, overcast 4.5 %, blue hour 8.7 %, Mars sunset 18 %.
+      The first moment alone (the true phase function's g, no delta cut) swings Mars the other way (0.3-0.4x away
+      from the sun in blue: a P1 field of a peaked phase function goes negative behind it) and leaves the overcast
+      0.85-0.95x; the delta cut alone (f = g, an isotropic rest) 1.2-1.6x too bright.
+
+    What the sun-cosine nodes and the forward cut per channel gain is measured in :class:`SunCosineNodes` and
+    :func:`grid_cut_deg`.
 
     The directions, steps and view grid were chosen by the bench (more directions change no day case by over 0.5 %
-    and the low suns by a few %); 24 altitudes and 16 steps since stop 46 (32 and 24 before: twice the build, the
-    same errors within 0.12 point but the overcast's, 5.7 % then; ``tools/measure_ms_resolution.py``). Cost, on this
-    project's 2-core machine, with the sun table: 1.07-1.11 s (1.54-1.71 s on one thread; ``tools/bench_tables.py``,
-    stop 47; 0.88-0.96 s before the second order by direction). The light is symmetric about the sun's plane, so
-    only the half of the directions with w_y > 0 is marched and the other half mirrored (the same numbers for half
-    the work: 4 s -> 2.7 s with J alone); the orders are summed by GMRES (:func:`solve_orders`, 0.02-0.03 s a
-    channel where LU took 0.35 s: 4.0 -> 2.4 s); the altitudes' rows are built on :data:`WORKERS` threads (at 32
-    altitudes and 24 steps 2.3-2.4 s on one thread, 1.4-1.6 s on 2 cores; the same numbers to the bit). What is
-    left (one thread, 1.54-1.71 s in that bench): the transport matrix's rows, 27 weighted bincounts per altitude
-    (0.57 s under cProfile; ``np.add.at`` and a sorted ``reduceat`` took 2.6-2.8x as long, batched matrix products
-    over each altitude cell's points 1.6x), the lookups 0.4 s, the march 0.15 s.
+    and the low suns by a few %); 24 altitudes and 16 steps (32 and 24 take twice the build for the same errors
+    within 0.12 point, the overcast's aside: 5.7 % against 4.5 %, with the second order a P1 field;
+    ``tools/measure_ms_resolution.py``). Cost, on this project's 2-core machine, with the sun table: 1.07-1.11 s
+    (1.54-1.71 s on one thread; ``tools/bench_tables.py``; 0.88-0.96 s without the second order by direction). The
+    light is symmetric about the sun's plane, so only the half of the directions with w_y > 0 is marched and the
+    other half mirrored (the same numbers for half the work: 4 s -> 2.7 s with J alone); the orders are summed by
+    GMRES (:func:`solve_orders`, 0.02-0.03 s a channel where LU took 0.35 s: 4.0 -> 2.4 s); the altitudes' rows are
+    built on :data:`WORKERS` threads (at 32 altitudes and 24 steps 2.3-2.4 s on one thread, 1.4-1.6 s on 2 cores;
+    the same numbers to the bit). Where the time goes (one thread, 1.54-1.71 s in that bench): the transport
+    matrix's rows, 27 weighted bincounts per altitude (0.57 s under cProfile; ``np.add.at`` and a sorted
+    ``reduceat`` take 2.6-2.8x as long, batched matrix products over each altitude cell's points 1.6x), the lookups
+    0.4 s, the march 0.15 s.
     """
 
     def __init__(self, atm: Atmosphere, sun_table: SunTransmittanceTable, ground_albedo=DEFAULT_GROUND_ALBEDO,
@@ -845,9 +831,9 @@ class MultipleScatteringTable:
             rays = all_rays[j]
             mu = rays.sun_cosine
             up = np.broadcast_to(rays.view_up[None], mu.shape)
-            # linear between the sun-cosine nodes (log-linearly the blue hour was 7.4 % off against 5.3 %, the
-            # Martian sunset 5.7 % against 6.0 %: 96 000 reference paths; with stop 49's nodes and 192 000 paths
-            # 3.8 % and xy 0.0102 against 3.8 % and 0.0093, 5.4 % against 5.6 %, the overcast 3.1 % against 2.6 %)
+            # linear between the sun-cosine nodes (log-linearly, against 192 000 reference paths, the blue hour is
+            # 3.8 % and xy 0.0102 against 3.8 % and 0.0093, the Martian sunset 5.4 % against 5.6 % with a 30 deg cut
+            # for every channel; the overcast 3.1 % against 2.6 % at 96 000)
             s_r, s_m = self._lookup(first_rows, np.broadcast_to(rays.altitude_m, mu.shape), mu, up, rays.toward_sun,
                                     log_linear=False)
             second[j] = np.sum(rays.step_rayleigh[None] * s_r + rays.step_mie[None] * s_m, axis=2)
@@ -1054,9 +1040,9 @@ class MultipleScatteringTable:
 #: (``blender/apply/precise_tables.py``, :func:`atmosphere_tables` with ``preview=True``): half the altitudes and
 #: sun cosines, about a fifth of the build (0.29 s against 1.52 s on 2 cores); the full table follows on the same
 #: worker; its sun-cosine nodes are every other one of the full table's. Against the complete reference
-#: (``tools/bench_accuracy.py``'s references, stop 49) by day 1.1-2.1 % (the full table 1.1-2.0 %), Earth sunsets
-#: 1.9 % / 2.5 %, Mars 0.2 % / 6.4 %, the overcast 1 deg sun 8.2 %, the blue hour 6.5 % (3.8 %; 13 % with stop 48's
-#: nodes).
+#: (``tools/bench_accuracy.py``'s references; Mars and the overcast with a 30 deg forward cut for every channel) by
+#: day 1.1-2.1 % (the full table 1.1-2.0 %), Earth sunsets 1.9 % / 2.5 %, Mars 0.2 % / 6.4 %, the overcast 1 deg sun
+#: 8.2 %, the blue hour 6.5 % (the full table 3.8 %).
 PREVIEW_RESOLUTION = {"n_altitudes": 12, "n_cosines": 17}
 class TableStore(Protocol):
     """Somewhere beyond this process that keeps what :func:`stored` builds: ``load`` returns the object saved under
@@ -1244,9 +1230,9 @@ def integrate_tile(atm: Atmosphere, camera_altitude_m: float, sun_elevation_rad:
     altitude cannot be reached at that distance. The ray is integrated by Simpson's rule in w = sqrt(t / d) on
     :data:`RAY_SAMPLES` samples (dense near the camera), the optical depth to each sample by the trapezoid rule
     on the same samples. The rows are integrated in blocks of :data:`TILE_BLOCK_ROWS` on :data:`WORKERS` threads,
-    each block's arrays small enough to stay in the processor's cache (``tools/bench_tables.py``, the code before
-    in a worktree, interleaved, stop 52: 0.87-1.23 s -> 0.50-0.57 s a tile on one thread, 0.54-0.71 s in one block
-    per thread -> 0.33-0.40 s on 2 cores; the same numbers to the bit).
+    each block's arrays small enough to stay in the processor's cache (``tools/bench_tables.py`` against whole-tile
+    arrays in a worktree, interleaved: 0.50-0.57 s a tile on one thread where they take 0.87-1.23 s, 0.33-0.40 s on
+    2 cores where one block per thread takes 0.54-0.71 s; the same numbers to the bit).
     """
     h_c = max(float(camera_altitude_m), 0.0)
     sun_table, ms_table = (atmosphere_tables(atm, tuple(float(a) for a in ground_albedo), preview=preview)

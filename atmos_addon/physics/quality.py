@@ -5,9 +5,9 @@ Levels (cheapest first)
     * FAST: Hoffman & Preetham 2002, eq. 19: sea-level densities along the whole ray
       (:mod:`~atmos_addon.physics.aerial_perspective`).
     * BALANCED: exponential densities along the (curved) ray in closed form
-      (:mod:`~atmos_addon.physics.balanced`). Measured here only: retired from the product in December 2026, off
-      the Pareto front of error against the complete reference versus render time (its worst day error 62 %
-      against Fast's 83 % and Precise + multiple scattering's 3 %, at Precise's cost; docs/quality.md).
+      (:mod:`~atmos_addon.physics.balanced`). Measured here only, not a level the add-on builds: off the Pareto
+      front of error against the complete reference versus render time (its worst day error 62 % against Fast's
+      83 % and Precise + multiple scattering's 3 %, at Precise's cost; docs/quality.md).
     * PRECISE: single scattering integrated numerically over the spherical planet, baked per frame into a
       camera-centred table the shader samples (:mod:`~atmos_addon.physics.precise`), with an optional
       multiple-scattering term (every order; :class:`~atmos_addon.physics.precise.MultipleScatteringTable`).
@@ -81,12 +81,12 @@ DAY_ERROR_PCT = {
     (Level.FAST, False): (9, 83),
     (Level.BALANCED, False): (5, 62),
     (Level.PRECISE, False): (5, 62),
-    (Level.PRECISE, True): (0.1, 2),   # the drone 0.1 % since each table row's columns start at its vertical ray
+    (Level.PRECISE, True): (0.1, 2),   # the drone 0.1 %: each table row's columns start at its vertical ray
 }
 #: Render time against Blender's own Sky Texture alone (its sky and no aerial perspective), the sample valley in
-#: Cycles: docs/benchmarks.md (``./run bench``, Blender 5.2.3, December 2026, with the camera sky view: medians of 3
-#: interleaved repeats); Balanced's from docs/quality.md "Cost" (``tools/bench_quality_cost.py --engines cycles
-#: --repeats 5 --decompose``, before its retirement). In-Render mode was not part of either bench.
+#: Cycles: docs/benchmarks.md (``./run bench``, Blender 5.2.3, with the camera sky view: medians of 3 interleaved
+#: repeats); Balanced's from docs/quality.md "Cost" (``tools/bench_quality_cost.py --engines cycles --repeats 5
+#: --decompose``; ``./run bench`` does not build it). In-Render mode is part of neither bench.
 RENDER_COST_VS_SKY = {
     (Level.FAST, "COMPOSITOR"): 1.20,
     (Level.FAST, "PER_PIXEL"): 1.03,

@@ -161,8 +161,8 @@ def shown_view_layer(scene):
     """The view layer whose image ``scene``'s render shows when no compositor picks one: with *Render Single Layer*,
     the window's view layer (the context's, where the context shows ``scene``), else the first that renders (the
     first of all when none does). A Render Layers node is made for this one: a new node reads the first view layer,
-    and a scene whose first layer is switched off (an artist's "Beauty" layer beside the default one) rendered black
-    with Atmos until December 2026."""
+    and a scene whose first layer is switched off (an artist's "Beauty" layer beside the default one) would render
+    black."""
     context_layer = getattr(bpy.context, "view_layer", None)
     if scene.render.use_single_layer and getattr(bpy.context, "scene", None) == scene and context_layer is not None:
         return context_layer
@@ -316,8 +316,8 @@ def _drive_parameters(node, scene) -> None:
     Single-property drivers (type Average of one variable): Blender evaluates them without Python, so a farm
     machine without the add-on, or a file opened with scripts disabled, renders the keyed parameters. Existing
     drivers are reset in place (a rebuilt group keeps its sockets' drivers); drivers on inputs the group no
-    longer has at those indices (a file saved with the Balanced level's camera and sun-depth inputs, retired in
-    December 2026) are removed.
+    longer has at those indices (a file saved with the retired Balanced level's camera and sun-depth inputs) are
+    removed.
     """
     per_pixel = nodes.per_pixel
     key = str(node.node_tree.get(per_pixel.FEATURES_KEY, ""))

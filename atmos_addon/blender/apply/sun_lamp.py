@@ -114,8 +114,8 @@ def drive_lamp(scene: bpy.types.Scene, lamp: bpy.types.Object, colour, strength:
 
 def _put_back(state) -> None:
     """Give the lamp ``state`` records (the one Atmos drives) its own colour, strength and angle back; nothing for a
-    lamp Atmos created or one that is gone. Until December 2026 a lamp the user replaced with another in the Sun
-    field kept Atmos's values, after a disable too."""
+    lamp Atmos created or one that is gone. So a lamp the user replaces with another in the Sun field does not keep
+    Atmos's values, after a disable either."""
     name = state.get("lamp")
     lamp = bpy.data.objects.get(name) if name else None
     if lamp is not None and lamp.type == "LIGHT" and lamp.name != state.get("created"):

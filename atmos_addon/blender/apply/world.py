@@ -214,8 +214,8 @@ def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, feature
 
 def sharing_scenes(scene: bpy.types.Scene, world: bpy.types.World | None) -> list:
     """The other scenes that render with ``world`` and have no Atmos sky in it: the sky would reach them without the
-    parameters it reads (their world rendered black, until December 2026), so :func:`install_sky` puts it in a copy
-    of ``world`` for ``scene``."""
+    parameters it reads (their world would render black), so :func:`install_sky` puts it in a copy of ``world`` for
+    ``scene``."""
     if world is None:
         return []
     return [other for other in bpy.data.scenes if other != scene and other.world == world and STATE_KEY not in other]
