@@ -350,7 +350,7 @@ haze, then a tile for a camera 100 m up under a 5 deg sun), on this machine's th
 
 COST_TEMPLATE = """## Render cost against Blender's own sky
 
-The sample valley (`atmos_addon/sample_scenes/valley.py`, clear preset) with each configuration built in one
+The sample valley (`sample_scenes/valley.py`, clear preset) with each configuration built in one
 process and rendered interleaved (`tools/bench_quality_cost.py`; Cycles on the CPU, fixed seed, no denoising,
 2 threads; Eevee through Mesa's llvmpipe on this CPU machine, so its figures are only a bound). "Blender's
 sky" is the valley's world fed by Blender's own Sky Texture (Multiple Scattering in 5.x) with no aerial
@@ -471,7 +471,7 @@ NOTES = """## What the numbers say
   node 0.07 ms into a 100-node tree, 0.33 ms into 400, 3.6 ms into 1600), so a build costs the square of its size:
   the Per Pixel group was written one Math node per channel (396 nodes, 0.45-0.91 s), then one Vector Math node per
   colour operation as the shader groups are (220 nodes, 0.13-0.27 s), and since stop 50 the groups are built from
-  **parts** (`atmos_addon/nodes/parts.py`): the table sample (five in each Precise group), phi1, the distance to the
+  **parts** (`node_groups/parts.py`): the table sample (five in each Precise group), phi1, the distance to the
   top, the sky's path length and the sun's disk are small groups of their own, built once and instanced, so the
   Precise sky holds 115 nodes of its own (244 inlined), the Per Pixel group 110 (224), the camera sky view 77 (107),
   and in a fresh file the aerial, Per Pixel, sky and camera sky groups build in 0.04 / 0.05 / 0.05-0.06 / 0.02 s

@@ -26,7 +26,7 @@ from atmos_addon.physics.quality import (BENCH_CASES, COMPLETE_ONLY_CASES,  # no
                                          COMPLETE_REFERENCE_GROUND_ALBEDO,
                                          COMPLETE_REFERENCE_PATHS, COMPLETE_REFERENCE_SEED, Level,
                                          complete_reference, errors, errors_of, evaluate, precise_tile, reference)
-from atmos_addon.nodes.aerial_perspective import NODE_COUNTS  # noqa: E402
+from atmos_addon.node_groups.aerial_perspective import NODE_COUNTS  # noqa: E402
 
 COMMAND = ".venv/bpy-5.2.3/bin/python tools/bench_accuracy.py"
 

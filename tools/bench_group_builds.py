@@ -6,7 +6,7 @@
 Builds, in a fresh file, the Precise level's groups an enable may build: the Compositor mode's per-sample "Atmos
 Aerial Perspective", the Per Pixel mode's compositor group (a colour one vector socket, as in the shader groups), the
 world's "Atmos Sky" and its camera "Atmos Sky View"; prints each one's node count (its own, and with its parts' nodes
-counted as if inlined: ``atmos_addon.nodes.parts``) and the median wall time of ``--repeats`` builds, its parts built
+counted as if inlined: ``atmos_addon.node_groups.parts``) and the median wall time of ``--repeats`` builds, its parts built
 anew each time.
 Then the cost of one ``nodes.new`` and one ``links.new`` in a compositor tree already holding 100, 400 and 1600 nodes:
 Blender re-runs the tree's update over the nodes already there at every edit, so a build grows with the square of
@@ -25,9 +25,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import bpy  # noqa: E402
 
-from atmos_addon.nodes import aerial_perspective, parts, per_pixel, registry, sky, sky_view, stamps  # noqa: E402
-from atmos_addon.nodes.sky import SkyFeatures  # noqa: E402
-from atmos_addon.nodes.terms import AerialFeatures  # noqa: E402
+from atmos_addon.node_groups import aerial_perspective, parts, per_pixel, registry, sky, sky_view, stamps  # noqa: E402
+from atmos_addon.node_groups.sky import SkyFeatures  # noqa: E402
+from atmos_addon.node_groups.terms import AerialFeatures  # noqa: E402
 
 
 def _builds() -> tuple[tuple[str, str, object], ...]:

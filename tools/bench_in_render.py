@@ -3,7 +3,7 @@
 
     .venv/bpy-5.2.3/bin/python tools/bench_in_render.py [--resolution 320x180] [--samples 64] [--repeats 3]
 
-Method. The valley (``atmos_addon/sample_scenes/valley.py``) is built once at the given resolution and rendered with Cycles
+Method. The valley (``sample_scenes/valley.py``) is built once at the given resolution and rendered with Cycles
 on the CPU: ``samples`` samples per pixel with adaptive sampling off (every configuration traces the same
 number of camera paths), a fixed seed, denoising off, the scene's own bounces and pixel filter, ``threads``
 render threads. Three configurations of the same file:

@@ -4,7 +4,7 @@
     .venv/bpy-5.2.3/bin/python tools/bench_quality_cost.py [--engines cycles,eevee] [--resolution 320x180]
         [--samples 64] [--repeats 3] [--decompose] [--only off,fast-per-pixel-aerial-only,...]
 
-Method. The valley (``atmos_addon/sample_scenes/valley.py``) is built once and rendered in Compositor mode (or
+Method. The valley (``sample_scenes/valley.py``) is built once and rendered in Compositor mode (or
 Per Pixel: "-per-pixel") with ``api.enable(scene, preset, quality=...)``: "off" is the effect disabled (the
 valley's plain world), "fast" and "precise" the two levels (Balanced, measured here until December 2026, was
 retired). Cycles renders on the CPU with ``samples`` samples, adaptive sampling off, a fixed seed and denoising

@@ -90,12 +90,12 @@ def plan_of(scene) -> Plan:
 
 
 def aerial_features(plan: Plan):
-    """The aerial node groups' feature set for ``plan`` (:class:`atmos_addon.nodes.terms.AerialFeatures`)."""
+    """The aerial node groups' feature set for ``plan`` (:class:`atmos_addon.node_groups.terms.AerialFeatures`)."""
     return groups().terms.AerialFeatures(mie=plan.mie, absorption=plan.absorption, level=plan.level, blend=plan.blend)
 
 
 def sky_features(plan: Plan):
-    """The sky group's feature set for ``plan`` (:class:`atmos_addon.nodes.sky.SkyFeatures`): the plan's terms,
+    """The sky group's feature set for ``plan`` (:class:`atmos_addon.node_groups.sky.SkyFeatures`): the plan's terms,
     ground and sky level (the Precise table's sky at the Precise level, the virtual dome otherwise)."""
     return groups().sky.SkyFeatures(mie=plan.mie, absorption=plan.absorption, ground=plan.sky_ground,
                                     level=plan.sky_level, blend=plan.blend and plan.sky_level == "precise")

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Notice hand edits inside the node groups Atmos manages, and put the groups back.
 
-Atmos owns every group its registry lists (:mod:`atmos_addon.nodes.registry`: the aerial perspective, the sky and
+Atmos owns every group its registry lists (:mod:`atmos_addon.node_groups.registry`: the aerial perspective, the sky and
 its lighting table, the compositor's groups, the material group, the In-Render groups). A user who opens one (Tab)
 and changes a value or a link changes the effect in every material or render, usually by accident. Each group carries
 a fingerprint of what the builder made (``tree["atmos_fingerprint"]``:
@@ -26,7 +26,7 @@ import hashlib
 
 import bpy
 
-from ..nodes import registry, stamps
+from ..node_groups import registry, stamps
 
 FINGERPRINT_KEY = "atmos_fingerprint"
 STAMP_KEY = "atmos_fingerprint_of"
@@ -168,7 +168,7 @@ def warning(name: str) -> str:
 
 def reset_groups(names=None) -> list[str]:
     """Rebuild the managed groups (all present ones, or ``names``) in place, each for the features it was built for
-    (:func:`atmos_addon.nodes.registry.rebuild`); their names. Each tree keeps its identity and its interface
+    (:func:`atmos_addon.node_groups.registry.rebuild`); their names. Each tree keeps its identity and its interface
     sockets, so the group nodes in materials and worlds keep their links; only the nodes inside are rebuilt (the
     caller writes the values again: a lighting group's table is refilled by the next sync)."""
     done = []

@@ -18,7 +18,7 @@ a file, and the Precise sky is another model).
 
 from __future__ import annotations
 
-from ..nodes import parameters
+from ..node_groups import parameters
 from ..physics import rayleigh_coefficients
 from ..physics.atmosphere import SEED_SUN_IRRADIANCE_TOP, SEED_WAVELENGTHS_NM
 from ..plan import RETIRED_BALANCED_NOTE

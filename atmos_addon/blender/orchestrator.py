@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import bpy
 
 from . import facts, group_integrity, migration, quality_choice, scene_reading, settings_io, sun_bake, sync
-from ..nodes import registry, stamps
+from ..node_groups import registry, stamps
 from .apply import compositor, in_render, materials, precise_tables, sun_drivers, sun_lamp, world
 
 #: Names of scenes whose ``enabled`` switch this module is setting (its update callback waits).

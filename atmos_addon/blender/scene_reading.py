@@ -12,7 +12,7 @@ from types import ModuleType
 import numpy as np
 from mathutils import Vector
 
-from .. import nodes
+from .. import node_groups
 from ..physics import Atmosphere
 from . import motion_path
 from .settings_io import FIELD_MAP
@@ -25,8 +25,8 @@ _last_atmosphere: dict[str, tuple] = {}
 
 
 def groups() -> ModuleType:
-    """The node groups package, :mod:`atmos_addon.nodes`."""
-    return nodes
+    """The node groups package, :mod:`atmos_addon.node_groups` (the top-level node_groups/ folder)."""
+    return node_groups
 
 
 def sun_object(scene):

@@ -15,7 +15,7 @@ per channel, with mu = v . l, the dome distances R_R, R_M at the elevation asin(
 t_i = R_i - a, T(a) = exp(-beta_ex a), T_R(t) = exp(-beta_R t), T_M(t) = exp(-beta_M,ex t), beta_ex = beta_R +
 beta_M,ex and L_ground = albedo E_sun max(l_z, 0) / pi (the ratios are 0 where their denominator is; so is
 their numerator). These are :func:`.sky.inscattering_layered` and :func:`.sky.extinction_layered` with b_i = R_i
-and phi1 cancelled against the slab lengths, the form the shader nodes use (``atmos_addon.nodes.aerial_perspective.
+and phi1 cancelled against the slab lengths, the form the shader nodes use (``atmos_addon.node_groups.aerial_perspective.
 scattering_terms``). A_R, A_M and F_ex lie in [0, 1] and depend only on the atmosphere: not on the sun, its
 irradiance or the ground. Below the horizon they keep their horizon values (the elevation is clamped).
 

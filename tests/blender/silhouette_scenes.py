@@ -27,7 +27,7 @@ import numpy as np
 
 import render_utils as ru
 
-#: The Atmos group every managed material carries (``atmos_addon.nodes.surface``).
+#: The Atmos group every managed material carries (``atmos_addon.node_groups.surface``).
 SURFACE_GROUP = "Atmos Surface AOVs"
 
 FOV = math.radians(20.0)

@@ -18,7 +18,7 @@ import pytest
 from mathutils import Vector
 
 from atmos_addon import plan
-from atmos_addon.nodes import parts, surface
+from atmos_addon.node_groups import parts, surface
 from atmos_addon.blender.apply import compositor, materials
 from atmos_addon.blender import orchestrator, scene_reading, settings_io
 from render_utils import emission_material, fast_segment, parity_world_camera_sun, render_exr, \
@@ -179,7 +179,7 @@ def test_a_material_group_of_the_older_layout_is_rebuilt_in_place_around_an_outp
     """A file saved before the outputs group (the AOV outputs inside "Atmos Surface AOVs" itself, its version 3): the
     next enable rebuilds that group in place as one node of "Atmos AOV Outputs"; the materials keep their group node
     and its links, write the same AOVs, and the aerial group is reused, not copied."""
-    from atmos_addon.nodes import stamps
+    from atmos_addon.node_groups import stamps
 
     scene = bpy.context.scene
     scene.atmos.render_mode = "COMPOSITOR"
@@ -528,7 +528,7 @@ def test_per_pixel_mode_composites_the_physics(engine: str, tolerance: float, tm
 
 
 def test_per_pixel_names_agree_between_the_materials_and_the_compositor_group() -> None:
-    from atmos_addon.nodes import parameters, per_pixel, surface
+    from atmos_addon.node_groups import parameters, per_pixel, surface
 
     assert (surface.AOV_DISTANCE, surface.AOV_VIEW) == (per_pixel.AOV_DISTANCE, per_pixel.AOV_VIEW)
     assert surface.DISTANCE_AOV_UNIT_M == per_pixel.DISTANCE_AOV_UNIT_M
@@ -634,7 +634,7 @@ def test_per_pixel_mode_swaps_with_the_compositor_mode_and_disables_cleanly() ->
 def test_a_per_pixel_group_of_an_older_version_is_rebuilt_and_its_node_driven_again() -> None:
     """A file saved by the first Per Pixel version (stop 18: eight parameter inputs, Fast only): the next sync
     rebuilds the group in place with today's inputs, and the group node gets a valid driver on every one."""
-    from atmos_addon.nodes import per_pixel, stamps
+    from atmos_addon.node_groups import per_pixel, stamps
 
     scene = bpy.context.scene
     mesh_object("Thing", user_material())
@@ -665,7 +665,7 @@ def test_a_per_pixel_group_saved_with_balanced_inputs_keeps_its_links_and_drops_
     """A Per Pixel group saved while Balanced existed had a camera-z input and three Balanced parameters (retired
     December 2026): rebuilt, those inputs and their drivers go, the render passes stay linked, every driver is
     valid and each parameter input reads its own scene property."""
-    from atmos_addon.nodes import per_pixel, stamps
+    from atmos_addon.node_groups import per_pixel, stamps
 
     scene = bpy.context.scene
     mesh_object("Thing", user_material())

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """One source per equation: the very functions that build the node groups, run on the numpy backend of the graph
-builder (:class:`atmos_addon.nodes.graph.ArrayBuilder`), give the physics core's values on thousands of rays.
+builder (:class:`atmos_addon.node_groups.graph.ArrayBuilder`), give the physics core's values on thousands of rays.
 
 The renders' side of the proof is in ``test_node_groups.py``: every parity render there also equals this
 evaluation of its group. Together: what a group renders is what its builder computes, and that is the core.
@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 
 from atmos_addon import presets
-from atmos_addon.nodes import aerial_perspective, parameters, sky
-from atmos_addon.nodes.graph import ArrayBuilder
-from atmos_addon.nodes.precise import IMAGE_NAME
-from atmos_addon.nodes.sky import SkyFeatures
-from atmos_addon.nodes.terms import AerialFeatures
+from atmos_addon.node_groups import aerial_perspective, parameters, sky
+from atmos_addon.node_groups.graph import ArrayBuilder
+from atmos_addon.node_groups.precise import IMAGE_NAME
+from atmos_addon.node_groups.sky import SkyFeatures
+from atmos_addon.node_groups.terms import AerialFeatures
 from atmos_addon.physics import Atmosphere, sun_irradiance_ground
 from atmos_addon.physics.sky import (aerial_distance_clamped, dome_distance_approx, elevation_of, extinction_layered,
                                      inscattering_layered, sky_radiance)
@@ -218,7 +218,7 @@ def test_the_compositor_builder_writes_a_colour_as_one_vector():
     socket is separated once however often it is asked, and the parameters are the sockets it was given."""
     import bpy
 
-    from atmos_addon.nodes.graph import COMPOSITOR_SEPARATE_XYZ, CompositorBuilder
+    from atmos_addon.node_groups.graph import COMPOSITOR_SEPARATE_XYZ, CompositorBuilder
 
     tree = bpy.data.node_groups.new("Compositor builder", "CompositorNodeTree")
     try:

@@ -56,8 +56,8 @@ def test_zip_holds_the_extension_and_nothing_else(extension_zip: Path) -> None:
     assert "blender_manifest.toml" in names
     assert "__init__.py" in names
     assert "atmos_addon/physics/__init__.py" in names
-    assert "atmos_addon/nodes/__init__.py" in names
-    assert "atmos_addon/sample_scenes/valley.py" in names and "atmos_addon/sample_scenes/mars.py" in names
+    assert "node_groups/__init__.py" in names
+    assert "sample_scenes/valley.py" in names and "sample_scenes/mars.py" in names
     for excluded in ("tests/", ".ci/", "tools/", ".venv/", "Makefile", "run", "requirements.txt"):
         assert not any(name == excluded or name.startswith(excluded) for name in names), excluded
     assert not any(name.endswith((".pyc", ".blend")) for name in names)

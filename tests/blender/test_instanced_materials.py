@@ -197,7 +197,7 @@ def test_linked_assets_from_a_file_with_atmos_on_are_hazed(tmp_path, reference):
     """A linked material cannot be edited, but one linked from a file saved with Atmos on carries the Atmos nodes,
     which write the view layer's AOVs by name: it is counted as managed, hazed as a local one, and Atmos builds its
     own groups beside the library's (a plain lookup by name returned the library's, which Atmos would have edited)."""
-    from atmos_addon.nodes import stamps
+    from atmos_addon.node_groups import stamps
 
     library = tmp_path / "assets.blend"
     _library(library, atmos=True)

@@ -7,7 +7,7 @@ its node-group migrations).
 scenes, Compositor mode at the Fast level and Per Pixel mode at the Balanced level, emissive planes against the
 Atmos sky. ``data/atmos_7df8acd.blend`` (the release before the Precise sky view, same tool with ``--precise``)
 adds a third scene at the Precise level with multiple scattering. Opened with today's add-on, every Atmos node group
-must carry today's stamp (:mod:`atmos_addon.nodes.stamps`), rebuilt in place (no second copy, the compositor's and
+must carry today's stamp (:mod:`atmos_addon.node_groups.stamps`), rebuilt in place (no second copy, the compositor's and
 materials' links kept), none may read as edited, and every scene must render as it did (Cycles, pixel centres:
 emission and sky only, no sampling noise). The Per Pixel scenes were saved at the Balanced level, retired in
 December 2026: they open at Fast, which shares Balanced's sky, and their compositor group node loses the drivers of
@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from atmos_addon.blender import group_integrity
-from atmos_addon.nodes import registry, stamps
+from atmos_addon.node_groups import registry, stamps
 import render_utils as ru
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -90,7 +90,7 @@ def _assert_balanced_upgraded_to_fast(scene) -> None:
     compositor group node driven on exactly today's inputs, every driver valid (the camera-z and sun-depth drivers
     of before would point at other sockets)."""
     from atmos_addon.blender.apply import compositor
-    from atmos_addon.nodes import parameters, per_pixel
+    from atmos_addon.node_groups import parameters, per_pixel
 
     assert scene.atmos.quality == "FAST" and scene.atmos.render_mode == "PER_PIXEL"
     assert not any(name in scene for name in parameters.RETIRED_PARAMETER_NAMES)
@@ -205,7 +205,7 @@ def test_a_scene_saved_at_the_retired_balanced_level_opens_at_fast(addon, tmp_pa
     their keys removed; a scene with the effect off is upgraded too; the API and the CLI refuse the name and say
     what replaced it."""
     from atmos_addon import api
-    from atmos_addon.nodes import parameters
+    from atmos_addon.node_groups import parameters
 
     scene = addon
     ru.make_camera(scene, rotation_euler=(1.5, 0.0, 0.0))

@@ -181,7 +181,7 @@ def test_the_precise_parameters_are_keyed_on_every_frame_constant_between():
     keys inserted, the rest written into their curves at once): each frame evaluates to its key tile's origin, the
     camera's altitude and its blend weight, constant between frames."""
     from atmos_addon import api
-    from atmos_addon.nodes.parameters import PRECISE_SCALE, PRECISE_TILE
+    from atmos_addon.node_groups.parameters import PRECISE_SCALE, PRECISE_TILE
     from atmos_addon.physics.precise import key_tiles
 
     scene, _camera, _sun = _rigged_scene()

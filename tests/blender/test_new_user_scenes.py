@@ -529,7 +529,7 @@ def test_the_api_points_the_sun_and_applies_presets_and_refuses_bad_input_unchan
     from atmos_addon import api
     from atmos_addon.blender import scene_reading, settings_io
     from atmos_addon.blender.apply import sun_lamp
-    from atmos_addon.nodes import parameters
+    from atmos_addon.node_groups import parameters
 
     scene = new_user_scene(32, 16)
     api.enable(scene, preset="clear", sun_elevation_deg=30.0, sun_azimuth_deg=0.0)

@@ -21,12 +21,12 @@ import render_utils as ru
 from atmos_addon.physics import Atmosphere, inscattering
 from atmos_addon.physics.sky import (aerial_distance_clamped, dome_distance_approx, elevation_of,
                                      extinction_layered, inscattering_layered)
-from atmos_addon.nodes import (AERIAL_PARAMETER_NAMES, GROUP_NAME, OUTPUT_INSCATTERING,
+from atmos_addon.node_groups import (AERIAL_PARAMETER_NAMES, GROUP_NAME, OUTPUT_INSCATTERING,
                          OUTPUT_TRANSMITTANCE, AerialFeatures, clear_shader_parameters, describe_features,
                          ensure_aerial_perspective_group, node_count, read_shader_parameters, write_shader_parameters)
-from atmos_addon.nodes import parts, stamps
-from atmos_addon.nodes.parameters import fcurves_of, remove_fcurve
-from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
+from atmos_addon.node_groups import parts, stamps
+from atmos_addon.node_groups.parameters import fcurves_of, remove_fcurve
+from atmos_addon.node_groups.aerial_perspective import NODE_COUNTS
 
 WIDTH, HEIGHT = 12, 8
 FOV = math.radians(60.0)
@@ -138,10 +138,10 @@ def _expected(camera, metres_per_unit: float, sun_direction, atm: Atmosphere = A
 
 def _builder_image(scene, camera, features: AerialFeatures, metres_per_unit: float) -> np.ndarray:
     """What the group's own builder computes for the parity scene's pixel-centre rays, on the graph builder's
-    numpy backend (:func:`atmos_addon.nodes.aerial_perspective.evaluate`) with the parameters the scene holds
+    numpy backend (:func:`atmos_addon.node_groups.aerial_perspective.evaluate`) with the parameters the scene holds
     and the Precise table's pixels as Blender stores them: the render must equal it (one source per equation)."""
-    from atmos_addon.nodes import aerial_perspective
-    from atmos_addon.nodes.precise import IMAGE_NAME
+    from atmos_addon.node_groups import aerial_perspective
+    from atmos_addon.node_groups.precise import IMAGE_NAME
 
     directions, distance_m, depth = _parity_rays(camera, metres_per_unit)
     distance_units = distance_m / metres_per_unit

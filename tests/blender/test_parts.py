@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Parts (:mod:`atmos_addon.nodes.parts`): pieces of the equations built once as node groups of their own.
+"""Parts (:mod:`atmos_addon.node_groups.parts`): pieces of the equations built once as node groups of their own.
 
 Blender re-runs a tree's whole update after each node a script adds, so a tree's build costs the square of its
 size; the parts keep every tree Atmos builds small. These tests hold what that must not cost: each part is one
@@ -17,7 +17,7 @@ import pytest
 
 from atmos_addon import api
 from atmos_addon.blender import group_integrity, orchestrator
-from atmos_addon.nodes import SKY_NODE_COUNTS, parts, registry, stamps
+from atmos_addon.node_groups import SKY_NODE_COUNTS, parts, registry, stamps
 
 pytestmark = pytest.mark.usefixtures("addon")
 

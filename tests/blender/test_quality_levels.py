@@ -16,9 +16,9 @@ import pytest
 from atmos_addon.blender.apply import in_render
 from atmos_addon.blender import orchestrator, quality_choice
 from atmos_addon.physics.quality import SceneSummary
-from atmos_addon.nodes import parts
-from atmos_addon.nodes.aerial_perspective import NODE_COUNTS
-from atmos_addon.nodes.parameters import PRECISE_TILE, RETIRED_PARAMETER_NAMES
+from atmos_addon.node_groups import parts
+from atmos_addon.node_groups.aerial_perspective import NODE_COUNTS
+from atmos_addon.node_groups.parameters import PRECISE_TILE, RETIRED_PARAMETER_NAMES
 from render_utils import emission_material
 
 GROUP = "Atmos Aerial Perspective"
@@ -152,9 +152,9 @@ def test_an_animated_sun_bakes_key_tiles_that_each_frame_blends_and_a_pan_bakes_
     two keys, every frame's key and weight at its own sun elevation, in the same image, grown in place. The sun's
     animation removed: one tile again, the groups without the blend."""
     from atmos_addon.blender import facts, scene_reading
-    from atmos_addon.nodes import precise as precise_nodes
-    from atmos_addon.nodes import stamps
-    from atmos_addon.nodes.parameters import PRECISE_SCALE, PRECISE_TILE
+    from atmos_addon.node_groups import precise as precise_nodes
+    from atmos_addon.node_groups import stamps
+    from atmos_addon.node_groups.parameters import PRECISE_SCALE, PRECISE_TILE
 
     scene = _scene()
     scene.frame_start, scene.frame_end = 1, 60
@@ -211,8 +211,8 @@ def test_precise_bakes_follows_the_sun_and_camera_and_cleans_up():
     re-bakes (a still scene), an unrelated slider does not; leaving Precise or disabling removes the image and
     the parameters."""
     from atmos_addon.physics.precise import DEFAULT_SHAPE
-    from atmos_addon.nodes import precise as precise_nodes
-    from atmos_addon.nodes.parameters import PRECISE_PARAMETER_NAMES, PRECISE_TILE
+    from atmos_addon.node_groups import precise as precise_nodes
+    from atmos_addon.node_groups.parameters import PRECISE_PARAMETER_NAMES, PRECISE_TILE
 
     scene = _scene(camera_z=300.0)
     scene.atmos.quality = "PRECISE"

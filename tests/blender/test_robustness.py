@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from atmos_addon import plan
-from atmos_addon.nodes import stamps, surface
+from atmos_addon.node_groups import stamps, surface
 from atmos_addon.blender.apply import compositor, materials
 from atmos_addon.blender import facts, orchestrator, scene_reading, sun_bake
 
@@ -339,7 +339,7 @@ def test_an_animated_table_laid_out_by_an_older_atmos_is_baked_again_on_opening(
     """Key tiles are not re-baked on every edit in the UI, but a file whose table an older Atmos laid out (before the
     camera sky view: narrower tiles, another bake key) would have the groups read the wrong columns: opening it
     bakes the key tiles again, at today's width."""
-    from atmos_addon.nodes import precise as precise_nodes
+    from atmos_addon.node_groups import precise as precise_nodes
     from atmos_addon.physics.precise import DEFAULT_SHAPE
 
     scene = bpy.context.scene
@@ -365,11 +365,11 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
     step, so each is a key tile in the packed image, the groups blend two keys by the keyed weight (frame 3 is the
     second segment's end: weight 1), and a process without the add-on renders every frame as the session did (max
     abs difference <= 1e-4); the frames differ from each other."""
-    from atmos_addon.nodes import precise as precise_nodes
-    from atmos_addon.nodes.parameters import PRECISE_SCALE, PRECISE_TILE
+    from atmos_addon.node_groups import precise as precise_nodes
+    from atmos_addon.node_groups.parameters import PRECISE_SCALE, PRECISE_TILE
     from atmos_addon.physics.precise import DEFAULT_SHAPE
 
-    from atmos_addon.nodes import per_pixel
+    from atmos_addon.node_groups import per_pixel
 
     scene = bpy.context.scene
     scene.atmos.quality = "PRECISE"
@@ -384,7 +384,7 @@ def test_farm_renders_the_precise_tables_of_a_moving_camera_and_sun(tmp_path: Pa
     image = bpy.data.images[precise_nodes.IMAGE_NAME]
     assert image.packed_file is not None and tuple(image.size) == (DEFAULT_SHAPE.width, 3 * precise_nodes.ALTITUDES)
     session = {}
-    from atmos_addon.nodes import stamps
+    from atmos_addon.node_groups import stamps
     for kind in (stamps.PER_PIXEL, stamps.SKY, stamps.SKY_VIEW):   # the default Per Pixel mode's: all read two keys
         assert "+blend" in bpy.data.node_groups[kind.name][stamps.FEATURES_KEY], kind.name
     for frame, row, weight in ((1, 0, 0.0), (2, 1, 0.0), (3, 1, 1.0)):

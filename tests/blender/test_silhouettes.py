@@ -13,8 +13,8 @@ import pytest
 
 import render_utils as ru
 import silhouette_scenes as ss
-from atmos_addon.nodes import composite
-from atmos_addon.nodes.graph import ArrayBuilder
+from atmos_addon.node_groups import composite
+from atmos_addon.node_groups.graph import ArrayBuilder
 
 # -- the equations on pixels made by hand ------------------------------------------------------------------------
 

@@ -27,9 +27,9 @@ from atmos_addon.physics import Atmosphere, sun_color_and_strength, sun_irradian
 from atmos_addon.physics.sun import LUMINANCE_WEIGHTS
 from atmos_addon.physics.sky import (aerial_distance_clamped,
                                      dome_distance_approx, elevation_of, inscattering_layered, sky_radiance)
-from atmos_addon.nodes import (OUTPUT_INSCATTERING, OUTPUT_RADIANCE, SKY_NODE_COUNTS, AerialFeatures, SkyFeatures,
+from atmos_addon.node_groups import (OUTPUT_INSCATTERING, OUTPUT_RADIANCE, SKY_NODE_COUNTS, AerialFeatures, SkyFeatures,
                          ensure_aerial_perspective_group, ensure_sky_group, write_shader_parameters)
-from atmos_addon.nodes import parts, sky_lighting
+from atmos_addon.node_groups import parts, sky_lighting
 from atmos_addon.physics.sky_table import sky_lighting_table
 
 ATMOSPHERE = Atmosphere()
@@ -227,7 +227,7 @@ def _table_graph_inputs(image, sun: np.ndarray, e_sun, altitude_m: float, scale=
     """What a numpy graph of the Precise world groups reads: the shader parameters as the add-on writes them for
     ``sun``, E_sun and the tile's camera altitude (``scale``: the Precise scale (D, top, w) of a key-tile blend;
     ``vertical``: the tiles' ``vertical_columns``), and the table image's pixels by name."""
-    from atmos_addon.nodes import parameters
+    from atmos_addon.node_groups import parameters
 
     values = parameters.shader_parameter_values(
         beta_rayleigh=ATMOSPHERE.rayleigh_scattering, beta_mie=ATMOSPHERE.mie_scattering,
@@ -333,7 +333,7 @@ def test_precise_lighting_group_matches_the_sky_view():
     ``physics.precise.lighting_from_tile`` (float32; the ground lit) and its numpy graph (``evaluate_precise``), and
     within a few % of the Precise sky it tabulates (``sky_from_tile``) away from the horizon: a ground camera and one
     3 km up, a noon, a low and a twilight sun. Cycles only: Eevee never runs this group."""
-    from atmos_addon.nodes.precise import IMAGE_NAME
+    from atmos_addon.node_groups.precise import IMAGE_NAME
     from atmos_addon.physics.precise import lighting_from_tile, sky_from_tile
     from atmos_addon.physics.sky import ground_radiance
 
@@ -546,8 +546,8 @@ def test_the_camera_sky_view_group_samples_the_core_s_camera_sky_view():
     (every direction: below the horizon it reads the horizon's row) and its band weight against its formula; built
     with ``blend`` (an animated camera or sun), its graph on a two-key image against ``blend_tiles``."""
     from atmos_addon.blender.apply import precise_tables
-    from atmos_addon.nodes import sky_view, stamps
-    from atmos_addon.nodes.precise import IMAGE_NAME
+    from atmos_addon.node_groups import sky_view, stamps
+    from atmos_addon.node_groups.precise import IMAGE_NAME
     from atmos_addon.physics.precise import (bake_tile, blend_tiles, camera_sky_from_tile, horizon_elevation,
                                              shared_max_distance)
 
@@ -622,7 +622,7 @@ def test_precise_level_shows_camera_rays_the_sky_view_above_the_horizon(addon):
     group's band weight. Rendered against the same world with the camera rays relinked to the table's sky: equal
     below the horizon, within 0.5 % above the band. A saved file's old route is fixed by the next update; at Fast
     the view's nodes and group are gone, and disabling leaves no group behind."""
-    from atmos_addon.nodes import stamps
+    from atmos_addon.node_groups import stamps
     from atmos_addon.physics.precise import horizon_elevation
 
     scene = ru.reset_scene()

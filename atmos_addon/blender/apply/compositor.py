@@ -4,12 +4,12 @@
 Per pixel the materials leave AOV sums over the surfaces that wrote (see :mod:`.materials`; alpha a_i, 1 for
 opaque surfaces, averaged over the pixel's samples): the coverage ``C = sum a_i``, and in the Compositor mode
 ``T = sum a_i T_i``, its square and cube, ``L = sum a_i L_i``, and the render the sky it shows (the Environment
-pass, switched on in every view layer). The group (``nodes.composite``) combines them: the sky passes untouched, a
+pass, switched on in every view layer). The group (``node_groups.composite``) combines them: the sky passes untouched, a
 pixel of one surface gets exactly L0 F_ex + L_in (Hoffman & Preetham eq. 16), a holdout's hole stays a hole, and a
 pixel of two surfaces is corrected for the product of their differences. Its Film Transparent input is driven from
 the scene's Film > Transparent (the render then shows no sky).
 
-Per Pixel evaluation (``render_mode`` "PER_PIXEL") inserts ``nodes.per_pixel``'s group instead: the
+Per Pixel evaluation (``render_mode`` "PER_PIXEL") inserts ``node_groups.per_pixel``'s group instead: the
 materials write the coverage, distance, its moments and the view direction, and the compositor evaluates T and L
 from them once per pixel before the same combination. Its parameter inputs are driven from the scene's properties.
 
@@ -27,14 +27,14 @@ import warnings
 
 import bpy
 
-from ... import nodes
+from ... import node_groups
 from ...plan import (AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_MOMENTS, AOV_TRANSMITTANCE,
                      AOV_TRANSMITTANCE_CUBED, AOV_TRANSMITTANCE_SQUARED, AOV_VIEW, AOVS, ENVIRONMENT_PASS)
 from .. import drivers
 from ..scene_reading import rendered_view_layers
 from ..tree_edits import TAG
 
-GROUP_NAME = nodes.stamps.COMPOSITE.name
+GROUP_NAME = node_groups.stamps.COMPOSITE.name
 STATE_KEY = "atmos_compositor"
 COMPOSITE_NODE = "Atmos Aerial Composite"
 CREATED_TREE_NAME = "Atmos Compositor"
@@ -169,7 +169,7 @@ def shown_view_layer(scene):
     return rendered_view_layers(scene)[0]
 
 
-#: The Render Layers output that bounds the coverage (:mod:`atmos_addon.nodes.composite`).
+#: The Render Layers output that bounds the coverage (:mod:`atmos_addon.node_groups.composite`).
 ALPHA = "Alpha"
 #: The Environment pass's Render Layers output in Blender 4.5 (5.0 names it :data:`~atmos_addon.plan.ENVIRONMENT_PASS`).
 ENVIRONMENT_4_5 = "Env"
@@ -297,8 +297,8 @@ def ensure_per_pixel_group(features):
     inputs are driven again in every scene that shows it: no input is left at its default, and the Precise
     table's inputs are driven only at that level (the scene has those properties only then).
     """
-    per_pixel = nodes.per_pixel
-    old = nodes.stamps.local(bpy.data.node_groups, per_pixel.GROUP_NAME)
+    per_pixel = node_groups.per_pixel
+    old = node_groups.stamps.local(bpy.data.node_groups, per_pixel.GROUP_NAME)
     before = None if old is None else (len(old.interface.items_tree), old.get(per_pixel.FEATURES_KEY))
     tree = per_pixel.ensure_per_pixel_group(features)
     if before is not None and (len(tree.interface.items_tree), tree.get(per_pixel.FEATURES_KEY)) != before:
@@ -319,9 +319,9 @@ def _drive_parameters(node, scene) -> None:
     longer has at those indices (a file saved with the retired Balanced level's camera and sun-depth inputs) are
     removed.
     """
-    per_pixel = nodes.per_pixel
+    per_pixel = node_groups.per_pixel
     key = str(node.node_tree.get(per_pixel.FEATURES_KEY, ""))
-    precise = nodes.AerialFeatures.from_key(key).level == "precise"   # "...+precise" or "...+precise+blend"
+    precise = node_groups.AerialFeatures.from_key(key).level == "precise"   # "...+precise" or "...+precise+blend"
     sockets = per_pixel.PARAMETER_SOCKETS + (per_pixel.PRECISE_SOCKETS if precise else ())
     targets = [(node.inputs[socket_name], index if size > 1 else None,
                 f'["{name}"][{index}]' if size > 1 else f'["{name}"]')
@@ -385,7 +385,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
         if evaluation == "PER_PIXEL":
             ensure_per_pixel_group(features)
         else:
-            nodes.composite.ensure_composite_group()   # rebuilt in place when stale (a file of an earlier release)
+            node_groups.composite.ensure_composite_group()   # rebuilt in place when stale (a file of an earlier release)
         follow_shown_view_layer(scene)
         upgrade_passes(scene, evaluation)
         return messages  # already installed: idempotent
@@ -398,7 +398,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
     per_pixel = evaluation == "PER_PIXEL"
     declare_aovs(scene, state, AOVS[evaluation])
     declare_environment(scene, state)
-    group = ensure_per_pixel_group(features) if per_pixel else nodes.composite.ensure_composite_group()
+    group = ensure_per_pixel_group(features) if per_pixel else node_groups.composite.ensure_composite_group()
     tree = _scene_tree(scene, state)
     state.setdefault("created_animation_data", tree.animation_data is None)
     final_input = _output_input(tree, state)
@@ -442,7 +442,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
     scene.render.use_compositing = True
     scene[STATE_KEY] = state
     if installed == "PER_PIXEL" and not per_pixel:   # left for the Compositor mode: its group, unless in use
-        nodes.registry.remove_unused((nodes.stamps.PER_PIXEL,))
+        node_groups.registry.remove_unused((node_groups.stamps.PER_PIXEL,))
     return messages
 
 
@@ -473,7 +473,7 @@ def current_tree(scene):
 
 def uninstall(scene) -> None:
     """Undo :func:`install`: relink, remove our nodes, AOVs and tree, restore the scene's switches (the groups
-    left unused go with :func:`atmos_addon.nodes.registry.remove_unused`)."""
+    left unused go with :func:`atmos_addon.node_groups.registry.remove_unused`)."""
     state = scene[STATE_KEY].to_dict() if STATE_KEY in scene else {}
     tree = current_tree(scene)
     if tree is not None:

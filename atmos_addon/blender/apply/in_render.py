@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Cycles in-render mode: the dome volumes, the per-material emission and the world compensation.
 
-The mechanism is :mod:`atmos_addon.nodes.in_render`'s; this module puts it into a scene and takes it out again:
+The mechanism is :mod:`atmos_addon.node_groups.in_render`'s; this module puts it into a scene and takes it out again:
 
 - two dome objects ("Atmos Dome (molecules)", "Atmos Dome (aerosols)") in their own collection "Atmos
   In-Render", meshes from ``physics.dome_mesh`` in metres, scaled to scene units (1 / metres per unit), held on
@@ -30,7 +30,7 @@ import warnings
 
 import bpy
 
-from ... import nodes
+from ... import node_groups
 from ...physics.dome_mesh import dome_mesh
 from ...plan import EEVEE_CLIP_RATIO_LIMIT
 from .. import tree_edits
@@ -46,7 +46,7 @@ WORLD_TAGS = ("in-render sky", "in-render background", "in-render world output")
 DOME_KEY = "atmos_dome_of"
 #: The camera's clip end is raised to this many times the largest dome distance.
 CLIP_MARGIN = 1.05
-#: Dome crossings a path may make: every dome surface is a transparent filter (``atmos_addon.nodes.in_render``), and
+#: Dome crossings a path may make: every dome surface is a transparent filter (``atmos_addon.node_groups.in_render``), and
 #: Cycles counts each crossing as a transparent bounce. A camera ray to the sky crosses 2; a reflected ray
 #: from beyond a dome enters and leaves it, 4 at most. The scene's transparent bounce limit and its
 #: Russian-roulette threshold are raised by this much while In-Render mode is installed (restored on removal),
@@ -55,7 +55,7 @@ DOME_CROSSINGS = 4
 
 
 def _groups():
-    return nodes.in_render
+    return node_groups.in_render
 
 
 def is_installed(scene) -> bool:
@@ -177,7 +177,7 @@ def _dome_material(species: str):
         warnings.simplefilter("ignore", DeprecationWarning)
         material.use_nodes = True
     tree = material.node_tree
-    if not nodes.stamps.is_current(tree, nodes.stamps.DOME_VOLUME, species):
+    if not node_groups.stamps.is_current(tree, node_groups.stamps.DOME_VOLUME, species):
         _groups().build_dome_volume(tree, species)
     return material
 

@@ -3,7 +3,7 @@
 
 Each managed material gets one node beside the user's nodes: a group node (label "Atmos Surface
 AOVs", custom property ``atmos_tag``) instancing the shared group "Atmos Surface AOVs"
-(:mod:`atmos_addon.nodes.surface`: through its outputs group, the aerial perspective and the AOV outputs, each
+(:mod:`atmos_addon.node_groups.surface`: through its outputs group, the aerial perspective and the AOV outputs, each
 weighted by the surface's opacity alpha = Opacity * (1 - Transparency)).
 
 Where the surface has an alpha path (Principled BSDF Alpha, or a Mix Shader with a Transparent BSDF
@@ -17,7 +17,7 @@ normalise pixels where more than one surface wrote.
 
 One node per material (not six) because every node edit in a material whose tree holds AOV outputs
 makes Blender re-check all materials (cost grows with the file); for the same reason a large pass
-edits materials while the shared group is detached from its outputs (:func:`atmos_addon.nodes.surface.detached`):
+edits materials while the shared group is detached from its outputs (:func:`atmos_addon.node_groups.surface.detached`):
 one edit re-attaches them at the end. The node keeps
 Blender's default name ("Group"): renaming a node fixes animation paths across the whole file and
 would be the slowest step; it is found by its tag. Removal deletes exactly the tagged nodes (and
@@ -32,13 +32,13 @@ from dataclasses import dataclass, field
 
 import bpy
 
-from ...nodes import stamps, surface
+from ...node_groups import stamps, surface
 from ...plan import AOVS
 from ..scene_reading import rendered_view_layers
 from ..tree_edits import (TAG, active_of, copy_input, cycles_of, cycles_output, free_spot, output_nodes, place_last,
                           remove_tagged, surface_link, take_over_cycles_output)
 
-#: The one group node each managed material gets instances this group (built by :mod:`atmos_addon.nodes.surface`).
+#: The one group node each managed material gets instances this group (built by :mod:`atmos_addon.node_groups.surface`).
 SURFACE_GROUP = surface.SURFACE_GROUP
 ensure_surface_group = surface.ensure_surface_group
 NODE_LABEL = "Atmos Surface AOVs"

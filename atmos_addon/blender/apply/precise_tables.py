@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from ...nodes import stamps
+from ...node_groups import stamps
 from ...physics.precise import (DEFAULT_SHAPE, Tile, bake_tile, bank_key, bank_tile, bank_units_around, banked,
                                 key_tiles, shared_max_distance, tables_ready, tile_from_bank)
 from .. import facts, group_integrity, motion_path, scene_reading

@@ -3,11 +3,11 @@
 
 The user's world data-block is kept (its Eevee probe resolution, sun-extraction and Cycles sampling settings,
 its other nodes): seven tagged nodes are added to its tree (ten at the Precise level). The analytic "Atmos Sky" group
-(:mod:`atmos_addon.nodes.sky`) feeds a Background shader of strength 1, and that Background feeds the active World
+(:mod:`atmos_addon.node_groups.sky`) feeds a Background shader of strength 1, and that Background feeds the active World
 Output's Surface: what Eevee renders, and what Cycles' camera rays see. For Cycles a second, Cycles-target
 World Output is added: a Mix Shader on Light Path > Is Camera Ray gives camera rays that same Background and
 every other ray (light samples of the world, rays escaping after a bounce) the same sky from the world's own
-"Atmos Sky Lighting" group (:mod:`atmos_addon.nodes.sky_lighting`: a per-atmosphere table, or at the Precise level
+"Atmos Sky Lighting" group (:mod:`atmos_addon.node_groups.sky_lighting`: a per-atmosphere table, or at the Precise level
 the frame's sky view in the baked table image; a fraction of the cost);
 Cycles skips the branch it does not pick. At the Precise level the camera rays' branch is itself a Mix Shader
 (:func:`_route_camera_rays`): the "Atmos Sky View" group's two lookups above the horizon, the camera's Background
@@ -28,7 +28,7 @@ import warnings
 
 import bpy
 
-from ...nodes import registry, stamps
+from ...node_groups import registry, stamps
 from ..scene_reading import groups
 from ..tree_edits import REACTIVATE_KEY, TAG
 
@@ -134,7 +134,7 @@ def _add_lighting_branch(tree: bpy.types.NodeTree, features, background: bpy.typ
 def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, features=None) -> str:
     """Show the sky ``group`` in ``scene``'s world (idempotent: an installed sky only gets ``group`` set).
 
-    ``features`` (the sky's :class:`~atmos_addon.nodes.sky.SkyFeatures`, default: all terms) shape the lighting group.
+    ``features`` (the sky's :class:`~atmos_addon.node_groups.sky.SkyFeatures`, default: all terms) shape the lighting group.
     A sky installed by an Atmos without the lighting branch gets it. Returns a sentence for the report.
     """
     features = features if features is not None else groups().sky.SkyFeatures()
@@ -277,7 +277,7 @@ def _table_key(atmosphere) -> str:
 
 def _route_other_rays(world: bpy.types.World) -> None:
     """Cycles' non-camera rays see the lighting group's Background: the curves' dome sky, or at the Precise level
-    the frame's sky view (:func:`atmos_addon.nodes.sky_lighting.precise_lighting_radiance`). Files saved before the
+    the frame's sky view (:func:`atmos_addon.node_groups.sky_lighting.precise_lighting_radiance`). Files saved before the
     Precise sky view routed those rays to the camera's Precise sky; they are relinked here. Relinks only when the
     route changes."""
     mix = _tagged(world, MIX_TAG, "ShaderNodeMixShader")
@@ -299,7 +299,7 @@ def _remove_sky_view_nodes(world: bpy.types.World) -> bool:
 
 def _route_camera_rays(world: bpy.types.World, features) -> None:
     """Cycles' camera rays at the Precise level: above the horizon band the "Atmos Sky View" group's two lookups
-    (:mod:`atmos_addon.nodes.sky_view`), within it and below the horizon the camera's Background (the "Atmos Sky"
+    (:mod:`atmos_addon.node_groups.sky_view`), within it and below the horizon the camera's Background (the "Atmos Sky"
     group), mixed by a Mix Shader on the group's Exact weight, whose other branch Cycles skips where the weight is 0
     or 1. At the Fast level the camera's Background directly; the view's nodes and its group are removed. (A table
     baked by an older Atmos lacks the camera sky view: ``precise_tables.follow`` bakes it again.) Edits only when the

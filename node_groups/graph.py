@@ -324,7 +324,7 @@ class GraphBuilder:
     def texture(self, image: bpy.types.Image | None, u: Operand, v: Operand, *, label: str = "") -> Socket:
         """The colour of ``image`` at texture coordinates (u, v), filtered bilinearly (Linear; edges extended) with
         texel centres at (x + 0.5) / width: one node for four texels. Cycles only (Eevee's Linear lookup picks a
-        mipmap from screen-space derivatives, :class:`atmos_addon.nodes.precise._Bilinear`)."""
+        mipmap from screen-space derivatives, :class:`atmos_addon.node_groups.precise._Bilinear`)."""
         node = self.node("ShaderNodeTexImage", label=label, interpolation="Linear", extension="EXTEND")
         node.image = image
         self._feed(node, node.inputs["Vector"], self.combine(u, v, 0.0, label=f"uv ({label})"))

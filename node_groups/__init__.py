@@ -15,14 +15,14 @@ tree stays small: Blender's build cost grows with the square of a tree's size).
 from .aerial_perspective import (GROUP_NAME, OUTPUT_INSCATTERING, OUTPUT_TRANSMITTANCE, build_aerial_perspective,
                                  describe_features, ensure_aerial_perspective_group, is_current, node_count)
 from .terms import AerialFeatures
-from . import in_render  # noqa: F401  (atmos_addon.nodes.in_render: Cycles In-Render mode)
+from . import in_render  # noqa: F401  (atmos_addon.node_groups.in_render: Cycles In-Render mode)
 from .graph import GraphBuilder
 from .parameters import (AERIAL_PARAMETER_NAMES, PARAMETER_NAMES, clear_shader_parameters,
                          keyframe_shader_parameters, read_shader_parameters, write_shader_parameters)
 from .sky import OUTPUT_RADIANCE, SKY_GROUP_NAME, SKY_NODE_COUNTS, SkyFeatures, build_sky, ensure_sky_group
-from . import sky_lighting  # noqa: F401  (atmos_addon.nodes.sky_lighting: the world's table sky for non-camera rays)
-from . import sky_view  # noqa: F401  (atmos_addon.nodes.sky_view: the Precise sky for camera rays, two lookups)
-from . import per_pixel  # noqa: F401  (atmos_addon.nodes.per_pixel: the Fast level evaluated per pixel in the compositor)
+from . import sky_lighting  # noqa: F401  (atmos_addon.node_groups.sky_lighting: the world's table sky for non-camera rays)
+from . import sky_view  # noqa: F401  (atmos_addon.node_groups.sky_view: the Precise sky for camera rays, two lookups)
+from . import per_pixel  # noqa: F401  (atmos_addon.node_groups.per_pixel: the Fast level evaluated per pixel in the compositor)
 from . import composite, parts, registry, stamps, surface  # noqa: F401  (compositor, material groups, parts, registry)
 
 __all__ = [
