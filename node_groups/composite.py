@@ -61,12 +61,10 @@ INTERFACE = (("Image", "OUTPUT", "NodeSocketColor"), ("Image", "INPUT", "NodeSoc
 MOMENT_ROUNDING = 2e-3
 #: The largest skewness |mu_3| / sigma^3 of the two-point reconstruction (a bound on what rounding can make of it).
 MAX_SKEW = 8.0
-#: The least spread of the neighbours' shares (their weighted variance over their weight) a slope is read from.
+#: The least spread of the neighbours' shares f (their weighted variance over their weight) a slope is read from.
 SPREAD_FLOOR = 0.01
 #: Covers below this are no cover (a guard for divisions).
 TINY = 1e-12
-#: The 3 x 3 neighbourhood the slope of the radiance is read from: (dx, dy) in pixels.
-NEIGHBOURHOOD = tuple((dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1))
 
 
 def _sqrt(g, value: Operand):
@@ -79,12 +77,17 @@ def two_point(g, coverage: Operand, first: Operand, second: Operand, third: Oper
     of x, x^2 and x^3 are ``first``, ``second`` and ``third`` over ``coverage`` = sum a_i: the pixel's samples read
     as two values, exact where it holds two (the Gauss quadrature of two nodes for those moments). Per component
     for colours. With the mean mu, variance v and third central moment k3 of the values, the two lie b below and
-    a above the mean with a - b = k3 / v and a b = v, and their shares balance the mean (p_hi a = p_lo b). A spread
-    under :data:`MOMENT_ROUNDING` of the mean square reads as one value (share_lo 1, lo = hi = mu)."""
+    a above the mean with a - b = k3 / v and a b = v, and their shares balance the mean (p_hi a = p_lo b). A variance
+    v_raw under t = :data:`MOMENT_ROUNDING` times the mean square reads as one value (share_lo 1, lo = hi = mu); above
+    it, v = v_raw - t^2 / v_raw, continuous at t and within t^2 / v_raw of the raw variance, so that two values well
+    apart keep their full spread (subtracting t itself would shrink every pixel's two transmittances towards each
+    other, and the correction with them)."""
     mean = g.div(first, g.max(coverage, TINY), label="mu")
     square = g.div(second, g.max(coverage, TINY), label="mu_2")
     cube = g.div(third, g.max(coverage, TINY), label="mu_3")
-    variance = g.max(g.sub(g.sub(square, g.mul(mean, mean)), g.mul(square, MOMENT_ROUNDING)), 0.0, label="v")
+    raw = g.sub(square, g.mul(mean, mean), label="v (raw)")
+    rounding = g.mul(square, MOMENT_ROUNDING, label="t")
+    variance = g.max(g.sub(raw, g.div(g.mul(rounding, rounding), g.max(raw, TINY))), 0.0, label="v")
     skew = g.sub(cube, g.mul(mean, g.sub(g.mul(square, 3.0), g.mul(g.mul(mean, mean), 2.0))), label="k3")
     spread = _sqrt(g, variance)
     bound = g.mul(spread, MAX_SKEW)
@@ -96,52 +99,38 @@ def two_point(g, coverage: Operand, first: Operand, second: Operand, third: Oper
     return g.sub(1.0, share_hi, label="p_lo"), share_hi, g.sub(mean, below, label="lo"), g.add(mean, above, label="hi")
 
 
-def _accumulate(g, weight, position, radiance, lo, reach, w, wf, wff, wi, wfi):
-    """One neighbour's terms added to the least-squares sums of :func:`neighbour_slope`: its weight (coverage),
-    share f of the hi value (from its mean value ``position`` / ``weight``) and radiance I = ``radiance`` /
-    ``weight``; returns (w, w f, w f^2, w I, w f I) with it."""
-    mean = g.div(position, weight)
-    share = g.min(g.max(g.mul(g.sub(mean, lo), reach), 0.0), 1.0, label="f")
-    colour = g.div(radiance, weight, label="I")
-    weighted = g.mul(share, weight)
-    return (g.add(w, weight), g.add(wf, weighted), g.add(wff, g.mul(weighted, share)),
-            g.add(wi, g.mul(colour, weight)), g.add(wfi, g.mul(colour, weighted)))
-
-
-def _accumulate_part(name: str, kind: str) -> parts.Part:
-    return parts.define(name, 1, (("Weight", parts.FLOAT), ("Position", kind), ("Radiance", parts.VECTOR),
-                                  ("Lo", kind), ("Reach", kind), ("W", parts.FLOAT), ("WF", kind), ("WFF", kind),
-                                  ("WI", parts.VECTOR), ("WFI", parts.VECTOR)),
-                        (("W", parts.FLOAT), ("WF", kind), ("WFF", kind), ("WI", parts.VECTOR), ("WFI", parts.VECTOR)),
-                        _accumulate, description="One neighbouring pixel added to the sums of a least-squares slope "
-                                                 "(Atmos)")
-
-
-ACCUMULATE = _accumulate_part("Atmos Neighbour Sums", parts.FLOAT)
-ACCUMULATE_COLOUR = _accumulate_part("Atmos Neighbour Sums (Colour)", parts.VECTOR)
-
-
 def neighbour_slope(g, radiance: Operand, coverage: Operand, position: Operand, lo: Operand, hi: Operand,
                     share_lo: Operand, share_hi: Operand):
-    """I_hi - I_lo: how the surfaces' radiance (``radiance`` / ``coverage``, a colour) of the 3 x 3 pixels around
-    changes with their share of the centre's ``hi`` value, read from their own mean value (``position`` /
-    ``coverage``, in the units of ``lo`` and ``hi``; a colour for per-channel values): the least-squares slope,
-    each pixel weighted by its coverage (the sky's pixels carry none). Bounded so that neither radiance it implies
-    for the centre, I_lo = I - p_hi slope and I_hi = I + p_lo slope (I the centre's mean radiance), is negative; 0
-    where the pixels' shares hardly differ (:data:`SPREAD_FLOOR`)."""
-    reach = g.div(1.0, g.sub(hi, lo), label="1 / (hi - lo)")   # 0 where hi = lo: every share 0, no slope
-    colour = is_vector(position)
-    zero = (0.0, 0.0, 0.0) if colour else 0.0
-    totals = (0.0, zero, zero, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-    for dx, dy in NEIGHBOURHOOD:
-        neighbours = (g.neighbour(coverage, dx, dy, label="C"), g.neighbour(position, dx, dy, label="x"),
-                      g.neighbour(radiance, dx, dy, label="P"))
-        totals = g.call(ACCUMULATE_COLOUR if colour else ACCUMULATE, *neighbours, lo, reach, *totals)
-    w, wf, wff, wi, wfi = totals
-    total = g.max(w, TINY)
-    variance = g.sub(wff, g.div(g.mul(wf, wf), total), label="var f")
-    covariance = g.sub(wfi, g.mul(wi, g.div(wf, total)), label="cov f, I")
-    slope = g.div(covariance, g.max(variance, g.mul(total, SPREAD_FLOOR)), label="I_hi - I_lo")
+    """I_hi - I_lo: how the surfaces' radiance I = P / C (``radiance`` / ``coverage``, a colour) of the 3 x 3 pixels
+    around changes with their share f = (m - lo) / (hi - lo) of the centre's ``hi`` value, m = x / C their own mean
+    value (``position`` / ``coverage``, in the units of ``lo`` and ``hi``; a colour for per-channel values): the
+    least-squares slope, each pixel weighted by its coverage (the sky's pixels carry none) and by the Soften weights
+    (1 2 1)^T (1 2 1) / 16. Its sums are five weighted averages <.> over the neighbourhood, each one Filter node
+    (:meth:`.graph.CompositorBuilder.soften`; all of non-negative values but the radiance, whose average is read
+    as 0 where noise on a black surface makes it negative):
+
+        W = <C>,  X = <x>,  Q = <x^2 / C>,  R = <P>,  Y = <x P / C>
+        var = Q - X^2 / W    (W times the coverage-weighted variance of m)
+        cov = Y - R X / W    (W times the covariance of m and I)
+        slope = cov (hi - lo) / var
+
+    damped where the shares hardly differ (var (hi - lo)^-2 under :data:`SPREAD_FLOOR` W), and bounded so that
+    neither radiance it implies for the centre, I_lo = I - p_hi slope and I_hi = I + p_lo slope (I the centre's
+    mean radiance), is negative."""
+    reach = g.div(1.0, g.sub(hi, lo), label="1 / (hi - lo)")   # 0 where hi = lo: no slope
+    squares = g.div(g.mul(position, position), coverage, label="x^2 / C")
+    if is_vector(position):
+        total = g.soften(coverage, label="W")
+        first, second = g.soften(position, label="X"), g.soften(squares, label="Q")
+    else:
+        total, first, second = g.separate(g.soften(g.combine(coverage, position, squares), label="W, X, Q"))
+    mean_radiance = g.soften(radiance, label="R")
+    cross = g.soften(g.div(g.mul(position, radiance), coverage, label="x P / C"), label="Y")
+    total = g.max(total, TINY)
+    variance = g.sub(second, g.div(g.mul(first, first), total), label="var")
+    covariance = g.sub(cross, g.mul(mean_radiance, g.div(first, total)), label="cov")
+    spread = g.max(g.mul(variance, g.mul(reach, reach)), g.mul(total, SPREAD_FLOOR), label="var f")
+    slope = g.div(g.mul(covariance, reach), spread, label="I_hi - I_lo")
     centre = g.div(radiance, g.max(coverage, TINY), label="I")
     return g.min(g.max(slope, g.neg(g.div(centre, share_lo))), g.div(centre, share_hi), label="slope, bounded")
 
@@ -161,14 +150,14 @@ def _slope_correction(g, radiance, coverage, position, share_lo, share_hi, lo, h
 
 
 def _two_point_part(name: str, kind: str) -> parts.Part:
-    return parts.define(name, 1, (("Coverage", parts.FLOAT), ("First", kind), ("Second", kind), ("Third", kind)),
+    return parts.define(name, 2, (("Coverage", parts.FLOAT), ("First", kind), ("Second", kind), ("Third", kind)),
                         (("Share Lo", kind), ("Share Hi", kind), ("Lo", kind), ("Hi", kind)), two_point,
                         description="A pixel's samples read as two values and their shares, from their first three "
                                     "coverage-weighted moments (Atmos)")
 
 
 def _correction_part(name: str, kind: str) -> parts.Part:
-    return parts.define(name, 1, (("Radiance", parts.VECTOR), ("Coverage", parts.FLOAT), ("Position", kind),
+    return parts.define(name, 2, (("Radiance", parts.VECTOR), ("Coverage", parts.FLOAT), ("Position", kind),
                                   ("Share Lo", kind), ("Share Hi", kind), ("Lo", kind), ("Hi", kind),
                                   ("Transmittance Lo", parts.VECTOR), ("Transmittance Hi", parts.VECTOR)),
                         (("Correction", parts.VECTOR),), _slope_correction,

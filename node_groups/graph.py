@@ -303,10 +303,10 @@ class GraphBuilder:
 
     # -- inputs and outputs -------------------------------------------------------------------------
 
-    def neighbour(self, value: Operand, dx: int, dy: int, *, label: str = "") -> Socket:
-        """``value`` at the pixel ``dx`` to the right and ``dy`` up (0 beyond the image): compositor graphs only (a
-        shading point has no neighbours)."""
-        raise TypeError("a shader graph has no neighbouring pixels: neighbour() is for compositor graphs")
+    def soften(self, value: Operand, *, label: str = "") -> Socket:
+        """``value`` (a colour, or a scalar) averaged over the 3 x 3 pixels around with the weights (1 2 1)^T (1 2 1)
+        / 16: compositor graphs only (a shading point has no neighbours)."""
+        raise TypeError("a shader graph has no neighbouring pixels: soften() is for compositor graphs")
 
     def shading_input(self, name: str, *, label: str = "") -> Socket:
         """What the shading point knows, by name (:data:`SHADING_INPUTS`): a new input node's output each call."""
@@ -522,24 +522,20 @@ class CompositorBuilder(GraphBuilder):
         self._feed(node, node.inputs["UV"], uv.outputs[0])
         return node.outputs["Image"]
 
-    def neighbour(self, value: Operand, dx: int, dy: int, *, label: str = "") -> Socket | float | tuple:
-        """``value`` at the pixel ``dx`` to the right and ``dy`` up: a Translate node by whole pixels, nearest texel,
-        0 beyond the image (4.5: ``interpolation`` and ``wrap_axis``; 5.0: the Interpolation and Extension inputs).
-        A constant is its own neighbour; a scalar goes through as a colour's first channel and comes back so."""
+    def soften(self, value: Operand, *, label: str = "") -> Socket | float | tuple:
+        """``value`` averaged over the 3 x 3 pixels around (weights (1 2 1)^T (1 2 1) / 16, edges extended): one
+        Filter node of the Soften type. The node's result is clamped at 0 (measured on 4.5, 5.2 and 5.3), so the
+        values averaged must not be negative. A constant is its own average; a scalar goes through as a colour's
+        first channel and comes back so."""
         if not isinstance(value, bpy.types.NodeSocket):
             return value
-        if dx == 0 and dy == 0:
-            return value
         scalar = not is_vector(value)
-        node = self.node("CompositorNodeTranslate", label=label)
-        if "Interpolation" in node.inputs:
-            node.inputs["Interpolation"].default_value = "Nearest"
-            node.inputs["Extension X"].default_value = node.inputs["Extension Y"].default_value = "Clip"
+        node = self.node("CompositorNodeFilter", label=label)
+        if "Type" in node.inputs:   # 5.0: the filter type is a menu input
+            node.inputs["Type"].default_value = "Soften"
         else:
-            node.interpolation, node.wrap_axis, node.use_relative = "NEAREST", "NONE", False
+            node.filter_type = "SOFTEN"
         self._feed(node, node.inputs["Image"], self.combine(value, 0.0, 0.0) if scalar else value)
-        self._feed(node, node.inputs["X"], float(-dx))
-        self._feed(node, node.inputs["Y"], float(-dy))
         return self.separate(node.outputs["Image"])[0] if scalar else node.outputs["Image"]
 
     def attribute(self, name: str, *, attribute_type: str = "VIEW_LAYER", output: str = "Color",
@@ -716,20 +712,22 @@ class ArrayBuilder(GraphBuilder):
 
         return tuple(gamma(c) for c in self._channels(colour))
 
-    def neighbour(self, value: Operand, dx: int, dy: int, *, label: str = ""):
-        """``value`` at the pixel ``dx`` to the right and ``dy`` up of each pixel of (height, width) arrays (row 0 at
-        the bottom, as the compositor's images), 0 beyond the image; a constant is its own neighbour."""
+    def soften(self, value: Operand, *, label: str = ""):
+        """``value`` averaged over the 3 x 3 pixels around each pixel of (height, width) arrays with the weights
+        (1 2 1)^T (1 2 1) / 16, edges extended and the result clamped at 0, as the compositor's Filter node (Soften)
+        computes it; a constant is its own average."""
         if is_vector(value):
-            return tuple(self.neighbour(part, dx, dy) for part in value)
+            return tuple(self.soften(part) for part in value)
         array = np.asarray(value, dtype=np.float32)
         if array.ndim < 2:
             return array
-        shifted = np.zeros_like(array)
+        padded = np.pad(array, ((1, 1), (1, 1)), mode="edge")
         height, width = array.shape[:2]
-        rows = slice(max(dy, 0), height + min(dy, 0)), slice(max(-dy, 0), height + min(-dy, 0))
-        columns = slice(max(dx, 0), width + min(dx, 0)), slice(max(-dx, 0), width + min(-dx, 0))
-        shifted[rows[1], columns[1]] = array[rows[0], columns[0]]
-        return shifted
+        total = np.zeros_like(array)
+        for dy, wy in ((0, 1.0), (1, 2.0), (2, 1.0)):
+            for dx, wx in ((0, 1.0), (1, 2.0), (2, 1.0)):
+                total += np.float32(wy * wx / 16.0) * padded[dy:dy + height, dx:dx + width]
+        return np.maximum(total, np.float32(0.0))
 
     def shading_input(self, name: str, *, label: str = ""):
         if name not in SHADING_INPUTS:

@@ -320,57 +320,70 @@ TABLE_COLUMN = parts.define(
     description="The Precise table's distance column of a point s m along the view in a row")
 
 
+class PreciseLookup:
+    """The frame's table read at one point s m along ``view`` (module docstring): its row and column, the
+    bilinear texel blend there (:class:`_Bilinear`), and the transmittance F_ex = exp(-tau) with 1 - F_ex (s taken
+    at most to the top of the atmosphere, :func:`distance_to_top`, or ``to_top`` where the caller has it: a surface
+    out in space shows the sky behind it). ``whole_row``: the table row where the caller knows it is a whole number
+    (the sky: the top row, or row 0 where the ray meets the ground), which skips the target altitude and half the
+    texel fetches. ``features.blend``: every texel blends the frame's two key tiles (:class:`KeyBlend`)."""
+
+    def __init__(self, g: GraphBuilder, features, s: Socket, view: Socket, to_top: Socket | None = None,
+                 whole_row: Socket | None = None):
+        self.g, self.features, self.view = g, features, view
+        vz = g.separate(view, label="v")[2]
+        x0, y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile (x0, y0, h_c)")
+        d_max, top, _ = g.separate(g.attribute(parameters.PRECISE_SCALE, output="Vector"), label="scale (D, top)")
+        width, height, vertical = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"),
+                                             label="atlas (W, H, vertical columns)")
+        radius = g.attribute(parameters.PLANET_RADIUS, output="Fac")
+        to_top = to_top if to_top is not None else distance_to_top(g, vz, h_c, top, radius)
+        s = g.min(g.max(s, 0.0), to_top, label="s, at most to the top")
+        if whole_row is None:
+            r_c = g.add(radius, h_c, label="r_c")
+            rise = g.mul(g.multiply_add(g.mul(r_c, 2.0), vz, s), s, label="rise = (2 r_c v_z + s) s")
+            r_p = g.sqrt(g.max(g.multiply_add(r_c, r_c, rise), 0.0), label="r_p")
+            h_p = g.add(h_c, g.div(rise, g.add(r_p, r_c)), label="h_p")
+            fraction = g.min(g.max(g.div(h_p, top), 0.0), 1.0, label="h_p / top")
+            row = g.mul(g.pow(fraction, 1.0 / 3.0), float(ALTITUDES - 1), label="row")
+        else:
+            row = whole_row
+        column = g.call(TABLE_COLUMN, s, row, h_c, top, d_max, vertical, label="col")
+        self.bilinear = _Bilinear(g, x0, y0, column, row, width, height, whole_row=whole_row is not None,
+                                  blend=KeyBlend(g, height) if features.blend else None)
+        tau = g.scale(self.bilinear.sample(0.0, "tau / s"), s, label="tau")
+        self.f_ex = g.per_channel(g.exp, g.neg(tau), label="F_ex")
+        self.one_minus_t = g.mul(tau, phi1_exact(g, tau, self.f_ex), label="1 - exp(-tau)")
+
+    def light(self) -> Socket:
+        """Phi_R A_R + Phi_HG A_M at the point: the in-scattered light per unit of 1 - F_ex (module docstring), its
+        two azimuth slices blended."""
+        g, view = self.g, self.view
+        vx, vy, _ = g.separate(view, label="v")
+        sun = sun_direction(g)
+        sx, sy, _ = g.separate(sun, label="l")
+        azimuth = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (AZIMUTHS - 1) / math.pi, label="a")
+        a0 = g.min(g.floor(azimuth), float(AZIMUTHS - 2), label="a0")
+        fa = g.sub(azimuth, a0, label="a - a0")
+        slice_offset = g.mul(a0, float(DISTANCES), label="a0 N_d")
+
+        def block(offset: int, name: str) -> Socket:
+            low = self.bilinear.sample(g.add(slice_offset, float(offset)), f"{name} (a0)")
+            high = self.bilinear.sample(g.add(slice_offset, float(offset + DISTANCES)), f"{name} (a0 + 1)")
+            return _lerp(g, low, high, fa, name)
+
+        nu = cos_theta_to_sun(g, view, sun)
+        light = g.scale(block(DISTANCES, "A_R"), phase_rayleigh(g, nu), label="Phi_R A_R")
+        if self.features.mie:
+            mie = g.mul(block(DISTANCES * (1 + AZIMUTHS), "A_M"),
+                        phase_henyey_greenstein(g, nu, g.attribute(parameters.MIE_G)), label="Phi_HG A_M")
+            light = g.add(light, mie, label="Phi_R A_R + Phi_HG A_M")
+        return light
+
+
 def precise_terms(g: GraphBuilder, features, s: Socket, view: Socket, to_top: Socket | None = None,
                   whole_row: Socket | None = None) -> tuple[Socket, Socket]:
-    """(F_ex, L_in) sampled from the frame's table (module docstring), s taken at most to the top of the
-    atmosphere (:func:`distance_to_top`, or ``to_top`` where the caller has it: a surface out in space shows the
-    sky behind it). ``whole_row``: the table row where the caller knows it is a whole number (the sky: the top
-    row, or row 0 where the ray meets the ground), which skips the target altitude and half the texel fetches.
-    ``features.blend``: every texel blends the frame's two key tiles (:class:`KeyBlend`)."""
-    vx, vy, vz = g.separate(view, label="v")
-    sun = sun_direction(g)
-    sx, sy, _ = g.separate(sun, label="l")
-    x0, y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile (x0, y0, h_c)")
-    d_max, top, _ = g.separate(g.attribute(parameters.PRECISE_SCALE, output="Vector"), label="scale (D, top)")
-    width, height, vertical = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"),
-                                         label="atlas (W, H, vertical columns)")
-    radius = g.attribute(parameters.PLANET_RADIUS, output="Fac")
-    to_top = to_top if to_top is not None else distance_to_top(g, vz, h_c, top, radius)
-    s = g.min(g.max(s, 0.0), to_top, label="s, at most to the top")
-
-    if whole_row is None:
-        r_c = g.add(radius, h_c, label="r_c")
-        rise = g.mul(g.multiply_add(g.mul(r_c, 2.0), vz, s), s, label="rise = (2 r_c v_z + s) s")
-        r_p = g.sqrt(g.max(g.multiply_add(r_c, r_c, rise), 0.0), label="r_p")
-        h_p = g.add(h_c, g.div(rise, g.add(r_p, r_c)), label="h_p")
-        fraction = g.min(g.max(g.div(h_p, top), 0.0), 1.0, label="h_p / top")
-        row = g.mul(g.pow(fraction, 1.0 / 3.0), float(ALTITUDES - 1), label="row")
-    else:
-        row = whole_row
-    column = g.call(TABLE_COLUMN, s, row, h_c, top, d_max, vertical, label="col")
-
-    azimuth = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (AZIMUTHS - 1) / math.pi, label="a")
-    a0 = g.min(g.floor(azimuth), float(AZIMUTHS - 2), label="a0")
-    fa = g.sub(azimuth, a0, label="a - a0")
-    bilinear = _Bilinear(g, x0, y0, column, row, width, height, whole_row=whole_row is not None,
-                         blend=KeyBlend(g, height) if features.blend else None)
-    slice_offset = g.mul(a0, float(DISTANCES), label="a0 N_d")
-
-    extinction = bilinear.sample(0.0, "tau / s")
-    tau = g.scale(extinction, s, label="tau")
-    f_ex = g.per_channel(g.exp, g.neg(tau), label="F_ex")
-    one_minus_t = g.mul(tau, phi1_exact(g, tau, f_ex), label="1 - exp(-tau)")
-
-    def block(offset: int, name: str) -> Socket:
-        low = bilinear.sample(g.add(slice_offset, float(offset)), f"{name} (a0)")
-        high = bilinear.sample(g.add(slice_offset, float(offset + DISTANCES)), f"{name} (a0 + 1)")
-        return _lerp(g, low, high, fa, name)
-
-    nu = cos_theta_to_sun(g, view, sun)
-
-    light = g.scale(block(DISTANCES, "A_R"), phase_rayleigh(g, nu), label="Phi_R A_R")
-    if features.mie:
-        mie = g.mul(block(DISTANCES * (1 + AZIMUTHS), "A_M"),
-                    phase_henyey_greenstein(g, nu, g.attribute(parameters.MIE_G)), label="Phi_HG A_M")
-        light = g.add(light, mie, label="Phi_R A_R + Phi_HG A_M")
-    return f_ex, g.mul(light, one_minus_t, label="L_in")
+    """(F_ex, L_in) sampled from the frame's table (:class:`PreciseLookup`): L_in = (Phi_R A_R + Phi_HG A_M)
+    (1 - F_ex)."""
+    lookup = PreciseLookup(g, features, s, view, to_top, whole_row)
+    return lookup.f_ex, g.mul(lookup.light(), lookup.one_minus_t, label="L_in")

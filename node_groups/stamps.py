@@ -40,8 +40,8 @@ SKY_VIEW = GroupKind("Atmos Sky View", "ShaderNodeTree", 2)
 #: The materials' group (one node of the outputs group) and its outputs (:mod:`.surface`).
 SURFACE = GroupKind("Atmos Surface AOVs", "ShaderNodeTree", 4)
 SURFACE_OUTPUTS = GroupKind("Atmos AOV Outputs", "ShaderNodeTree", 2)
-COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 3)
-PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 9)
+COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 4)
+PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 10)
 IN_RENDER_SURFACE = GroupKind("Atmos In-Render Surface", "ShaderNodeTree", 3)
 IN_RENDER_SKY = GroupKind("Atmos In-Render Sky", "ShaderNodeTree", 3)
 #: A part: a piece of an equation built once as its own group and instanced by the groups above (:mod:`.parts`;
