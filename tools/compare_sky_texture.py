@@ -20,10 +20,10 @@ which separates the dome's approximations from the differences between atmospher
 without ozone for the single-scattering one.
 
 Usage (one command renders with this interpreter's Blender, with each ``--also`` interpreter in a subprocess,
-and rewrites the generated part of the report)::
+and, with ``--output``, rewrites the generated part of that report; docs/reference_sky.md quotes its tables)::
 
     .venv/bpy-5.2.3/bin/python tools/compare_sky_texture.py --also .venv/bpy-4.5.15/bin/python \\
-        --output docs/sky_comparison.md
+        --output sky_comparison.md
 
 ``--measure-json PATH`` only renders and writes the measurements as JSON (what ``--also`` runs).
 """
@@ -253,7 +253,7 @@ METRIC_COLUMNS = (("zenith_b_over_r", "zenith B/R"), ("zenith_g_over_r", "zenith
 
 def markdown_tables(ours: dict, ours_approx: dict, brute_force: dict, blender_runs: list[dict], command: str,
                     precise_rows: tuple[dict, dict] | None = None) -> str:
-    """The generated part of docs/sky_comparison.md: one table per metric, a row per model."""
+    """The generated part of the report: one table per metric, a row per model."""
     rows = [("Atmos (dome, accurate)", ours), ("Atmos (dome, approx.)", ours_approx),
             ("brute-force single scattering, same atmosphere", brute_force)]
     if precise_rows is not None:
@@ -321,7 +321,7 @@ def wrote_measure_json(args: argparse.Namespace, measure) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    add_blender_options(parser, "docs/sky_comparison.md")
+    add_blender_options(parser, "sky_comparison.md")
     args = parser.parse_args(argv)
     if wrote_measure_json(args, measure_blender):
         return 0
