@@ -403,7 +403,7 @@ NOTES = """## What the numbers say
   camera altitude change still bakes its tile (0.29-0.33 s, in the interface on a worker thread): the "no re-bake"
   is not met, as the tile is camera-centred and baked per sun elevation; the table that depends on neither,
   Bruneton's 4-D one (Hillaire's sky-view and aerial-perspective tables are per frame like the tile), was built and
-  measured against the tile (`tools/measure_sun_free_table.py`, docs/quality.md): 33-40 s to bake per atmosphere
+  measured against the tile (docs/quality.md): 33-40 s to bake per atmosphere
   on 2 cores, 33.6 MB in every file, and further from the exact integrals (on Earth beyond 30 km 21 % of the
   horizon sky at the 99th percentile against the tile's 3.6 %), so it is not adopted (what it showed of the tile's
   steep rays made each table row's columns start at its vertical ray: Mars 14-17 % -> 2.5-9.0 %); an atmosphere
@@ -559,8 +559,8 @@ NOTES = """## What the numbers say
   in again), which the table's threads already get. Tried and dropped: fewer samples along the tile's rays (49
   instead of 65 moved a texel by up to 30 % near the planet's shadow), the multiple-scattering lookup at every
   second or fourth sample, interpolated between (0.38 / 0.28 s a tile, texels up to 0.7 % / 1.5 % off under the
-  overcast). The resolution study that chose the table (`.venv/bpy-5.2.3/bin/python tools/measure_ms_resolution.py`,
-  stop 45: the largest change of the default's pixel luminance per case, %, against the table then):
+  overcast). The resolution study that chose the table (the largest change of the default's pixel luminance per
+  case, %, against the first row's table):
 
   | table | build | day cases | sunsets | Mars noon / sunset | blue hour | overcast, 1 deg sun |
   |---|---:|---:|---:|---:|---:|---:|

@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The Precise level: its tables against direct quadrature, the shader's sampling, stability at the extremes."""
 
+import collections
 import math
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -90,10 +92,10 @@ def test_the_first_moment_stays_physical_at_extreme_hazes(preset, scale, g):
 
 
 def test_the_scattering_orders_are_solved_as_the_direct_solve_would():
-    """GMRES on (I - A) x = source (:func:`precise.solve_orders`) against LU: a transport like the presets' (spectral
+    """GMRES on (I - A) x = source (:func:`solver.solve_orders`) against LU: a transport like the presets' (spectral
     radius 0.6, the overcast's), one so close to conservative that GMRES stops at its step limit and hands over to the
     direct solve, and a dark source. Then a whole table, the overcast preset's, against one solved directly."""
-    from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import solver
 
     rng = np.random.default_rng(7)
     n = 600
@@ -102,36 +104,37 @@ def test_the_scattering_orders_are_solved_as_the_direct_solve_would():
     for radius, limit in ((0.6, 60), (0.999, 5)):
         transport = base * (radius / np.abs(np.linalg.eigvals(base)).max())
         want = np.linalg.solve(np.eye(n) - transport, source)
-        got = precise.solve_orders(transport, source, max_iterations=limit)
+        got = solver.solve_orders(transport, source, max_iterations=limit)
         assert np.abs(got - want).max() <= 1e-8 * np.abs(want).max(), radius
-    np.testing.assert_array_equal(precise.solve_orders(base * 0.001, np.zeros(n)), np.zeros(n))
+    np.testing.assert_array_equal(solver.solve_orders(base * 0.001, np.zeros(n)), np.zeros(n))
 
     atm = load("overcast").atmosphere
     sun = SunTransmittanceTable(atm)
     iterative = MultipleScatteringTable(atm, sun)
-    direct = precise.solve_orders
+    direct = solver.solve_orders
     try:
-        precise.solve_orders = lambda transport, rhs: np.linalg.solve(np.eye(rhs.size) - transport, rhs)
+        solver.solve_orders = lambda transport, rhs: np.linalg.solve(np.eye(rhs.size) - transport, rhs)
         reference = MultipleScatteringTable(atm, sun)
     finally:
-        precise.solve_orders = direct
+        solver.solve_orders = direct
     assert np.abs(iterative.psi - reference.psi).max() <= 1e-8 * reference.psi.max()
     assert np.abs(iterative.first_moment - reference.first_moment).max() <= 1e-8 * reference.psi.max()
 
 
 def test_the_tables_built_on_threads_are_those_of_one_thread(monkeypatch):
-    """The multiple-scattering table's altitudes and the tile's rows are built on :data:`precise.WORKERS` threads, each
+    """The multiple-scattering table's altitudes and the tile's rows are built on :data:`parallel.WORKERS` threads, each
     writing its own slices: the same numbers to the bit as one thread (3 threads here, whatever the machine), and a
     thread's exception reaches the caller."""
     from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import bake, parallel
 
     atm = load("mars").atmosphere.replace(mie_g=0.7)     # not a preset's: no cached tables
     shape = TableShape(17, 4, 12)
 
     def build(workers: int):
-        monkeypatch.setattr(precise, "WORKERS", workers)
+        monkeypatch.setattr(parallel, "WORKERS", workers)
         ms = MultipleScatteringTable(atm, SunTransmittanceTable(atm), n_altitudes=12, n_cosines=17)
-        monkeypatch.setattr(precise, "atmosphere_tables", lambda *args, **kwargs: (ms._sun_table, ms))
+        monkeypatch.setattr(bake, "atmosphere_tables", lambda *args, **kwargs: (ms.sun_table, ms))
         tile = precise.integrate_tile(atm, 500.0, math.radians(3.0), shape=shape)
         return ms, tile
 
@@ -146,14 +149,14 @@ def test_the_tables_built_on_threads_are_those_of_one_thread(monkeypatch):
             raise ArithmeticError("block 2")
 
     with pytest.raises(ArithmeticError, match="block 2"):
-        precise.in_parallel(fails, 4)
+        parallel.in_parallel(fails, 4)
 
 
 def test_the_sun_tables_share_their_geometry_not_their_coefficients():
     """An edit of the haze, its colour or the ozone's amount reuses the sun table's Chapman and ozone grids (they
     depend on the planet, the top and the scale heights only) and transmits as a table built from nothing; a new
     scale height builds new grids."""
-    from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import transmittance
 
     clear = load("clear").atmosphere
     edited = clear.replace(mie_scattering=clear.mie_scattering * 3.0, rayleigh_scattering=clear.rayleigh_scattering
@@ -165,7 +168,7 @@ def test_the_sun_tables_share_their_geometry_not_their_coefficients():
     radius = clear.planet_radius + rng.uniform(0.0, 50_000.0, 2000)
     cosine = rng.uniform(-0.3, 1.0, 2000)
     shared = second(radius, cosine)
-    precise._SUN_GEOMETRY.clear()
+    transmittance._SUN_GEOMETRY.clear()
     fresh = SunTransmittanceTable(edited)
     assert fresh.log_ch is not first.log_ch
     np.testing.assert_array_equal(shared, fresh(radius, cosine))
@@ -600,12 +603,13 @@ def test_the_default_meets_the_low_sun_targets_against_the_stored_complete_refer
 def test_the_forward_cut_grows_with_the_hazes_g():
     """30 deg at the clear haze's g (every Earth case of the bench as it was), 6 deg per 0.1 of g, within 20-35 deg;
     the share of the peak carried on the sun's line grows with g."""
-    from atmos_addon.physics.precise import _cone_fraction, grid_cut_deg
+    from atmos_addon.physics.precise import grid_cut_deg
+    from atmos_addon.physics.precise.directions import cone_fraction
 
     np.testing.assert_allclose(grid_cut_deg([0.6, 0.68, 0.76, 0.78, 0.9, -0.5]), [20.4, 25.2, 30.0, 31.2, 35.0, 20.0])
-    fractions = _cone_fraction(np.array([0.63, 0.68, 0.78]))
+    fractions = cone_fraction(np.array([0.63, 0.68, 0.78]))
     assert 0.0 < fractions[0] < fractions[1] < fractions[2] < 0.78 ** 2
-    assert _cone_fraction(np.array([-0.3, 0.0, 0.5]))[:2].tolist() == [0.0, 0.0]
+    assert cone_fraction(np.array([-0.3, 0.0, 0.5]))[:2].tolist() == [0.0, 0.0]
 
 
 def test_a_high_sun_keeps_the_difference_between_toward_and_away():
@@ -658,37 +662,37 @@ def test_the_grid_forward_cone_is_the_peak_above_its_edge():
     """f_c (closed form) is the share of Henyey-Greenstein above its value at the cone's edge, inside the cone: the
     flattened phase function holds the rest (a numerical integral); none for a haze without a forward peak, more for a
     more peaked one, and less than delta-Eddington's g^2 (the grid resolves more of the peak than a P1 field)."""
-    from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import directions
 
     mu = np.linspace(-1.0, 1.0, 400_001)
     g = np.array([0.3, 0.63, 0.78])
-    cone = precise._cone_fraction(g)
-    cut = precise._cut_phase_hg(mu, g)
+    cone = directions.cone_fraction(g)
+    cut = directions.cut_phase_hg(mu, g)
     rest = 2.0 * np.pi * np.sum(0.5 * (cut[1:] + cut[:-1]) * np.diff(mu)[:, None], axis=0)   # (numpy 1.x: no trapezoid)
     np.testing.assert_allclose(rest + cone, 1.0, atol=1e-6)
     assert cone[0] > 0.0 and np.all(np.diff(cone) > 0.0) and np.all(cone < g ** 2)
-    np.testing.assert_array_equal(precise._cone_fraction(np.array([0.0, -0.3, -0.9])), 0.0)
+    np.testing.assert_array_equal(directions.cone_fraction(np.array([0.0, -0.3, -0.9])), 0.0)
     backward = np.array([-0.3, -0.5, -0.9])
-    np.testing.assert_array_equal(precise._cut_phase_hg(mu, backward), phase_hg(mu, backward))
-    np.testing.assert_allclose(precise.grid_forward_fraction(MARS), precise._cone_fraction(MARS.mie_g))
+    np.testing.assert_array_equal(directions.cut_phase_hg(mu, backward), phase_hg(mu, backward))
+    np.testing.assert_allclose(directions.grid_forward_fraction(MARS), directions.cone_fraction(MARS.mie_g))
 
 
 def test_the_view_weights_integrate_the_phase_functions_over_the_grid_cells():
     """Every view direction's weights sum to 1 (a uniform field is scattered unchanged), the haze's less its forward
     cone to 1 - f_c; the raw cell averages already integrate a peaked phase function to 1 over the grid where samples
     at the cells' centres fall short (0.95 at g 0.78)."""
-    from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import directions
 
     g = (0.63, 0.68, 0.78)
-    views, rayleigh, haze, cut = precise._view_weights(6, 16, 17, 9, g)
+    views, rayleigh, haze, cut = directions.view_weights(6, 16, 17, 9, g)
     assert views.shape == (17 * 9, 3) and rayleigh.shape == (17 * 9, 192) and haze.shape == cut.shape == (153, 192, 3)
     np.testing.assert_allclose(rayleigh.sum(axis=1), 1.0, rtol=1e-12)
     np.testing.assert_allclose(haze.sum(axis=1), 1.0, rtol=1e-12)
-    np.testing.assert_allclose(cut.sum(axis=1), np.broadcast_to(1.0 - precise._cone_fraction(np.array(g)), (153, 3)),
+    np.testing.assert_allclose(cut.sum(axis=1), np.broadcast_to(1.0 - directions.cone_fraction(np.array(g)), (153, 3)),
                                rtol=1e-12)
-    assert not haze.flags.writeable and precise._view_weights(6, 16, 17, 9, g)[2] is haze   # cached
-    dirs, solid_angle = precise._direction_grid(6, 16)
-    raw = precise._cell_weights(views, 6, 16, lambda mu: phase_hg(mu, 0.78)).sum(axis=1)
+    assert not haze.flags.writeable and directions.view_weights(6, 16, 17, 9, g)[2] is haze   # cached
+    dirs, solid_angle = directions.direction_grid(6, 16)
+    raw = directions.cell_weights(views, 6, 16, lambda mu: phase_hg(mu, 0.78)).sum(axis=1)
     centres = (phase_hg(views @ dirs.T, 0.78) * solid_angle).sum(axis=1)
     assert np.abs(raw - 1.0).max() < 0.006 and centres.min() < 0.96
 
@@ -843,8 +847,9 @@ def test_the_bank_blends_its_two_keys_around_the_sun_and_integrates_nothing_else
     """A sun between two banked keys gets their blend (what the shader's blend of two key tiles samples); with either
     key missing, nothing (and nothing is integrated to find out)."""
     from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import bake, bank
 
-    monkeypatch.setattr(precise, "_BANK", precise.collections.OrderedDict())
+    monkeypatch.setattr(bank, "_BANK", collections.OrderedDict())
     sun = math.radians(21.3)
     k, weight = precise.sun_key_bracket(sun)
     assert precise.tile_from_bank(EARTH, 40.0, sun) is None and not precise.banked(EARTH, 40.0)
@@ -854,7 +859,7 @@ def test_the_bank_blends_its_two_keys_around_the_sun_and_integrates_nothing_else
     high = precise.bank_tile(EARTH, 40.0, k + 1)
     integrate = precise.integrate_tile
     assert np.array_equal(high.a_mie, integrate(EARTH, 40.0, math.radians(22.0)).a_mie)
-    monkeypatch.setattr(precise, "integrate_tile", lambda *args, **kwargs: pytest.fail("integrated"))
+    monkeypatch.setattr(bake, "integrate_tile", lambda *args, **kwargs: pytest.fail("integrated"))
     assert precise.bank_tile(EARTH, 40.0, k) is low and not low.a_rayleigh.flags.writeable   # kept, shared
     blended = precise.tile_from_bank(EARTH, 40.0, sun)
     expected = blend_tiles(low, high, weight, 40.0, EARTH)
@@ -862,8 +867,8 @@ def test_the_bank_blends_its_two_keys_around_the_sun_and_integrates_nothing_else
         assert np.array_equal(getattr(blended, name), getattr(expected, name)), name
     assert weight == pytest.approx(0.65)
     assert precise.tile_from_bank(EARTH, 40.0, sun, multiple_scattering=False) is None   # another table's keys
-    monkeypatch.setattr(precise, "integrate_tile", integrate)
-    stop = precise.threading.Event()
+    monkeypatch.setattr(bake, "integrate_tile", integrate)
+    stop = threading.Event()
     stop.set()                                   # a key no longer wanted: its integration ends, nothing is kept
     with pytest.raises(precise.TileCancelled):
         precise.integrate_tile(EARTH, 40.0, sun, stop=stop)
@@ -881,7 +886,7 @@ def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
     down, 0.980-1.037 at 4 and 6, 0.988-1.010 from 2 deg down up). Linearly, the same 33 nodes made it up to 1.31x too
     bright at 4-8 deg down (the twilight sky away from the sun +27 % and +50 % against the spectral reference at -4 and
     -6 deg); 1.19x since the table carries the light's first moment (December 2026)."""
-    from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import scattering
 
     clear = load("clear").atmosphere
     sun = SunTransmittanceTable(clear)
@@ -902,7 +907,7 @@ def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
     log_linear = ratio()
     assert np.all(np.abs(log_linear - 1.0) < 0.075), (log_linear.min(), log_linear.max())
     assert np.all(np.abs(log_linear[:, 3:] - 1.0) < 0.02)   # from 2 deg down to the day
-    monkeypatch.setattr(precise, "_log_linear", lambda low, high, fraction: low + fraction * (high - low))
+    monkeypatch.setattr(scattering, "log_linear", lambda low, high, fraction: low + fraction * (high - low))
     assert ratio()[:, :3].max() > 1.12   # the straight line, which the test would catch
 
 
@@ -968,15 +973,15 @@ def test_the_camera_sky_view_rows_and_blend():
 
 
 def test_log_linear_is_the_geometric_line_between_lit_nodes_and_the_straight_line_elsewhere():
-    """``_log_linear`` (the tables' interpolation across the terminator): low^(1 - f) high^f where both nodes are
+    """``log_linear`` (the tables' interpolation across the terminator): low^(1 - f) high^f where both nodes are
     positive, low + f (high - low) where either is 0 or below (rounding deep in the planet's shadow), in the
     arrays' own dtype; the fast path that fixes only the dark cells gives what ``np.where`` over both gives."""
-    from atmos_addon.physics.precise import _log_linear
+    from atmos_addon.physics.precise.interpolation import log_linear
 
     low = np.array([[1.0, 0.0, 4.0, -1e-9, 2.0, 1e-30]], np.float32)
     high = np.array([[4.0, 3.0, 0.0, 5.0, 2.0, 1e-20]], np.float32)
     fraction = np.array([[0.5]], np.float32)
-    result = _log_linear(low, high, fraction)
+    result = log_linear(low, high, fraction)
     assert result.dtype == np.float32
     np.testing.assert_allclose(result[0], [2.0, 1.5, 2.0, 2.5, 2.0, 1e-25], rtol=1e-5)
     rng = np.random.default_rng(3)
@@ -985,7 +990,7 @@ def test_log_linear_is_the_geometric_line_between_lit_nodes_and_the_straight_lin
     positive = (low > 0.0) & (high > 0.0)
     expected = np.where(positive, low * (np.where(positive, high, 1.0) / np.where(positive, low, 1.0)) ** fraction,
                         low + fraction * (high - low))
-    assert np.array_equal(_log_linear(low, high, fraction), expected)
+    assert np.array_equal(log_linear(low, high, fraction), expected)
 
 
 def test_the_preview_tables_are_a_cheaper_table_close_to_the_full_one(without_table_store):
@@ -995,6 +1000,7 @@ def test_the_preview_tables_are_a_cheaper_table_close_to_the_full_one(without_ta
     one of the full table's, stop 49, 6.1 % before; median under 0.02 %). They are kept apart from the full ones,
     which alone make :func:`tables_ready` true."""
     from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import tables
 
     atm = Atmosphere(mie_scattering=Atmosphere().mie_scattering * 1.0137)   # an atmosphere no other test builds
     assert not precise.tables_ready(atm)
@@ -1011,4 +1017,4 @@ def test_the_preview_tables_are_a_cheaper_table_close_to_the_full_one(without_ta
     assert (table.n_alt, table.n_mu) == (24, 32) and atmosphere_tables(atm)[1] is table
     for scale in (1.01, 1.02, 1.03):
         atmosphere_tables(Atmosphere(mie_scattering=atm.mie_scattering * scale), preview=True)
-    assert sum(key[2] for key in precise._TABLES) == 2 and precise.tables_ready(atm)   # the previews kept apart
+    assert sum(key[2] for key in tables._TABLES) == 2 and precise.tables_ready(atm)   # the previews kept apart
