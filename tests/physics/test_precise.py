@@ -61,7 +61,7 @@ def test_multiple_scattering_table_is_finite_positive_and_zero_deep_in_the_shado
     assert isinstance(ms, MultipleScatteringTable) and isinstance(sun, SunTransmittanceTable)
     assert np.all(np.isfinite(ms.psi)) and np.all(ms.psi >= 0.0)
     assert np.all(ms(0.0, 1.0) > 0.0)
-    # midnight: 1e-12 of noon (measured 1.1e-12; 1e-26 before stop 48): its node's rays end where the sun is up to
+    # midnight: 1e-12 of noon (measured 1.1e-12): its node's rays end where the sun is up to
     # 9 deg higher and read J there linearly across the night's one cell, from the node 23 deg down (5e-10 of noon)
     assert np.all(ms(0.0, -1.0) < 1e-11 * ms(0.0, 1.0))
     assert np.all(ms(0.0, -0.5) < 1e-8 * ms(0.0, 1.0))                 # 30 deg down (2.7e-10): a render shows 0
@@ -190,7 +190,7 @@ def _stays_above_ground(altitude, views, distances, atm):
 @pytest.mark.parametrize("atm", [EARTH, MARS], ids=["earth", "mars"])
 def test_the_ray_integrals_split_at_a_point_down_the_ray(atm):
     """J(x -> end) = J(x -> p) + T(x, p) J(p -> end) for the single and the multiple scattering, and the optical depths
-    add: the identity a table of whole rays relies on (tools/measure_sun_free_table.py's S(x) - T S(p)), and a check
+    add: the identity a table of whole rays relies on (Bruneton's S(x) - T S(p)), and a check
     that ``ray_integrals`` carries the geometry down the ray (the point's own view and sun zenith cosines, nu the
     same)."""
     tables = atmosphere_tables(atm)
@@ -235,9 +235,9 @@ def test_each_rows_columns_start_at_its_vertical_ray():
 @pytest.mark.parametrize("atm", [EARTH, MARS], ids=["earth", "mars"])
 def test_steep_rays_to_high_points_follow_the_integrals(atm):
     """Looking up at a peak or a canyon wall kilometres away (rays 30-89 deg up, 3-30 km long) under a low sun: the
-    tile within 5 % of the horizon sky of the integrals along each ray (``tools/measure_sun_free_table.py``): 1.8 %
-    on Earth, 4.6 % on Mars; with the columns of before (D (k / (N_d - 1))^2 for every row, a steep ray's neighbours
-    a vertical ray cut short and rays far lower) 7.5 % and 37 %."""
+    tile within 5 % of the horizon sky of the integrals along each ray (``ray_inscattering``): 1.8 % on Earth, 4.6 %
+    on Mars; with one set of columns for every row (D (k / (N_d - 1))^2, a steep ray's neighbours a vertical ray cut
+    short and rays far lower) 7.5 % and 37 %."""
     tables = atmosphere_tables(atm)
     worst = 0.0
     for camera_altitude, sun_deg in ((2.0, 1.0), (1000.0, 5.0), (1000.0, -3.0)):
@@ -417,7 +417,8 @@ def test_sky_from_the_table_matches_the_brute_force_sky(preset):
     (the dome's ground-level sun darkens the upper sky, worst at sunset)."""
     atm = EARTH if preset == "clear" else load(preset).atmosphere
     views = _sky_views([0.2, 0.5, 1, 2, 3, 5, 8, 12, 20, 30, 45, 60, 80, 90], [0, 10, 30, 60, 90, 135, 180])
-    # by day within 0.5 % on average since each row's columns start at its vertical ray (0.4-1.0 % before: 1.2 %)
+    # by day within 0.5 % on average, each row's columns starting at its vertical ray (0.4-1.0 % with one set of
+    # columns for every row: 1.2 %)
     for sun_deg, mean_limit, max_limit in ((60.0, 0.005, 0.08), (20.0, 0.005, 0.08), (5.0, 0.005, 0.08),
                                            (1.0, 0.04, 0.30)):
         e = math.radians(sun_deg)
@@ -464,9 +465,9 @@ def test_far_surfaces_composite_to_the_precise_sky():
 def test_multiple_scattering_follows_the_complete_reference_over_a_dark_and_a_bright_ground(albedo):
     # Ground vista (sun 40 deg, level views 100 m to 30 km): Precise's L_in with its multiple-scattering term
     # against every order by Monte Carlo, over the same Lambertian ground. Measured mean ratios 0.982 (black
-    # ground) and 0.998 (albedo 0.3). Hillaire's isotropic table gave 0.90 and 0.98, and 0.88 at albedo 0.3 before
-    # it let the skylight bounce off the ground; lighting the ground with the mean radiance at the ground (which
-    # counts the ground's own light) instead of the sky's irradiance gave 1.044.
+    # ground) and 0.998 (albedo 0.3). Hillaire's isotropic table gives 0.90 and 0.98, and 0.88 at albedo 0.3 where
+    # the skylight does not bounce off the ground; lighting the ground with the mean radiance at the ground (which
+    # counts the ground's own light) instead of the sky's irradiance gives 1.044.
     from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import bake_tile
     from atmos_addon.physics.precise import evaluate as evaluate_precise
@@ -486,11 +487,10 @@ def test_multiple_scattering_follows_the_complete_reference_over_a_dark_and_a_br
 
 def test_multiple_scattering_at_the_blue_hour_is_not_an_interpolation_artefact():
     # Sun 4 deg below the horizon: Psi_ms falls by orders of magnitude within a few degrees of the terminator. With
-    # the sun cosines linear (32 of them) the table interpolated across that fall: L_in 1.53x the complete
-    # reference on average (Hillaire's isotropic table). Crowded at mu_s = 0 it agrees with a 256-sample table:
-    # measured 0.81 then, 1.20 with the orders carried between points and the view-dependent last scattering
-    # (per ray 0.88-1.38x against 24000 paths: the isotropic third and higher orders, docs/quality.md), 0.95 with
-    # 800 paths of seed 13 later, 1.02 since the table carries the light's first moment (December 2026).
+    # the sun cosines linear (32 of them) a table interpolates across that fall: L_in 1.53x the complete reference
+    # on average (Hillaire's isotropic table). Crowded at mu_s = 0 it agrees with a 256-sample table. Measured 1.02
+    # with the light's first moment carried (800 paths of seed 13); with isotropic third and higher orders 1.20
+    # (per ray 0.88-1.38x against 24000 paths, docs/quality.md).
     from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import bake_tile
     from atmos_addon.physics.precise import evaluate as evaluate_precise
@@ -539,11 +539,11 @@ def test_the_view_dependent_multiple_scattering_averages_to_the_mean_radiance(pr
                                              ("sunset_away", 0.95, 1.08)])
 def test_multiple_scattering_at_a_low_sun_follows_the_complete_reference(name, low, high):
     # Mean L_in / the Monte Carlo reference (800 paths) at a 1 deg sun. Measured: overcast 1.02, clear toward the
-    # sun 0.99, away 1.02 (stop 47; 1.03, 0.99, 1.02 before the first order was scattered once more by direction).
-    # With the higher orders an isotropic mean radiance (no first moment, no delta-Eddington split; until December
-    # 2026) 0.75, 0.95 and 0.96: the light of the thick forward-scattering haze that keeps
-    # travelling away from a low sun was scattered every way at the third order. Hillaire's table (isotropic, the
-    # higher orders of a uniformly lit medium) gave about 0.2 in the overcast, 0.8 toward and 0.72 away.
+    # sun 0.99, away 1.02 (1.03, 0.99, 1.02 with the second order a P1 field instead of carried by direction).
+    # With the higher orders an isotropic mean radiance (no first moment, no delta-Eddington split) 0.75, 0.95 and
+    # 0.96: the light of the thick forward-scattering haze that keeps travelling away from a low sun is scattered
+    # every way at the third order. Hillaire's table (isotropic, the higher orders of a uniformly lit medium) gives
+    # about 0.2 in the overcast, 0.8 toward and 0.72 away.
     ratio = float(np.mean(_ratios_to_complete_reference(name)))
     assert low < ratio < high, ratio
 
@@ -587,9 +587,9 @@ def test_the_multiply_scattered_light_of_a_martian_sunset_keeps_its_direction():
 def test_the_default_meets_the_low_sun_targets_against_the_stored_complete_reference(name):
     """The issue's targets for a sunset (luminance within 5 %, CIE xy within 0.01) against the complete reference at
     192 000 paths a ray and channel (two seeds averaged; stored by ``tools/store_complete_reference.py``, whose
-    command the file holds: ten minutes to trace, so CI reads it). Measured: the Martian sunset 3.7 %, xy 0.0058 since
-    the forward cut follows each channel's g (stop 52, ``precise.grid_cut_deg``); with one 30 deg cut for every
-    channel 5.6 %, xy 0.0097 (red and green 2-6 % too bright, blue 2-10 % too dark)."""
+    command the file holds: ten minutes to trace, so CI reads it). Measured: the Martian sunset 3.7 %, xy 0.0058 with
+    the forward cut following each channel's g (``precise.grid_cut_deg``); with one 30 deg cut for every channel
+    5.6 %, xy 0.0097 (red and green 2-6 % too bright, blue 2-10 % too dark)."""
     from atmos_addon.physics.quality import bench_case, errors_of, reference
 
     stored = np.load(Path(__file__).resolve().parent / "data" / f"complete_{name}.npz")
@@ -615,9 +615,9 @@ def test_the_forward_cut_grows_with_the_hazes_g():
 def test_a_high_sun_keeps_the_difference_between_toward_and_away():
     # Mars at noon (sun 80 deg up, level views 45 and 180 deg from the sun's azimuth): mean L_in / the Monte Carlo
     # reference (1000 paths a ray and channel, seed 14), toward and away. Measured 1.00 and 1.00 (balance 1.004;
-    # seed 16: 0.994) since the sun-cosine nodes are even in elevation above 23 deg (stop 48); with the former nodes,
-    # whose last cell ran from 61.5 deg to the zenith, 0.97 and 1.04 (balance 0.93; 4.8 % against 64 000 paths, now
-    # 0.3 %).
+    # seed 16: 0.994), the sun-cosine nodes even in elevation above 23 deg; with nodes even in sqrt|mu_s|, whose last
+    # cell runs from 61.5 deg to the zenith, 0.97 and 1.04 (balance 0.93; 4.8 % against 64 000 paths where these
+    # nodes give 0.3 %).
     from atmos_addon.physics.quality import bench_case
 
     case = bench_case("mars_noon")
@@ -723,7 +723,8 @@ def test_the_sky_view_lights_as_the_precise_sky(preset):
     in-scattering of a ground camera's short rays grows like 1 / |v_z| between rows, and the bilinear chord lies
     above it: 5 % too much light 0.5-2 deg below the horizon (measured), which only shows where the ground is unlit
     (the sun below the horizon: a down-facing surface under a twilight sky): measured 2.9-6.8 % on Mars at a sun 4
-    deg down (the blue the most) since the multiple-scattering table carries the light's first moment, 5 % before."""
+    deg down (the blue the most), the multiple-scattering table carrying the light's first moment (5 % with
+    isotropic higher orders)."""
     atm = EARTH if preset == "clear" else load(preset).atmosphere
     rng = np.random.default_rng(3)
     views = rng.normal(size=(60_000, 3))
@@ -795,11 +796,10 @@ def test_key_tiles_of_a_pan_a_climb_a_turn_and_a_jump():
 
 def test_blended_key_tiles_follow_the_tile_baked_between_them():
     """Half way between two key tiles (the worst place), the blend against the tile baked there: relative luminance
-    error, median and 99th percentile (tools/measure_key_tiles.py prints the whole table). The 6 -> 5 deg pair
-    straddles a sun-cosine node of the multiple-scattering table (5.7 deg), whose light is log-linear on each side
-    since December 2026: aerial 0.37 % / 0.55 % measured (0.20 % / 0.30 % when it was linear); 0.51 % / 0.77 % since
-    stop 48 reads a sun cosine linearly in the elevation between two nodes (the sky 0.32 % / 0.58 %), and the 1.5 -> 1
-    deg pair's aerial median 0.47 %."""
+    error, median and 99th percentile (``mid_step_error``). The 6 -> 5 deg pair straddles a sun-cosine node of the
+    multiple-scattering table (5.7 deg), whose light is log-linear between nodes and whose sun cosine is read linearly
+    in the elevation: aerial 0.51 % / 0.77 % measured (the sky 0.32 % / 0.58 %; 0.20 % / 0.30 % with the light
+    linear between nodes), and the 1.5 -> 1 deg pair's aerial median 0.47 %."""
     first = bake_tile(EARTH, 2.0, math.radians(20.0), max_distance_m=shared_max_distance([2.0, 400.0], EARTH))
     second = bake_tile(EARTH, 400.0, math.radians(18.0), max_distance_m=first.max_distance_m)
     same = blend_tiles(first, second, 0.0, 2.0, EARTH)
@@ -878,14 +878,11 @@ def test_the_bank_blends_its_two_keys_around_the_sun_and_integrates_nothing_else
 def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
     """Across the terminator the multiply scattered light falls by orders of magnitude within a few degrees of sun:
     the table interpolates it log-linearly between its sun-cosine nodes, so 33 nodes give what 65 give (S_R + S_M
-    in luminance, the clear preset, ground albedo 0.3, 4 altitudes x 7 suns x 64 views: measured 0.96-1.03 at
-    suns 4-8 deg down, within 1 % from 2 deg down up; 0.96-1.06 since the table scatters the first order once
-    more by direction, stop 47, its points read linearly between the nodes: 1.06 at 8 deg down, 0.96-1.03 at 4 and
-    6); since stop 48's nodes, both tables read linearly in the sun's elevation between nodes: 1.02-1.075 at 8 deg
-    down, 1.00-1.05 at 4 and 6, 0.984-1.008 from 2 deg down up; with stop 49's geometric cells 1.008-1.066 at 8 deg
-    down, 0.980-1.037 at 4 and 6, 0.988-1.010 from 2 deg down up). Linearly, the same 33 nodes made it up to 1.31x too
-    bright at 4-8 deg down (the twilight sky away from the sun +27 % and +50 % against the spectral reference at -4 and
-    -6 deg); 1.19x since the table carries the light's first moment (December 2026)."""
+    in luminance, the clear preset, ground albedo 0.3, 4 altitudes x 7 suns x 64 views, both tables reading a sun
+    cosine linearly in the elevation between the nodes of ``SunCosineNodes``: measured 1.008-1.066 at 8 deg down,
+    0.980-1.037 at 4 and 6, 0.988-1.010 from 2 deg down up). Linearly between the nodes, the same 33 nodes make it
+    up to 1.19x too bright at 4-8 deg down (the twilight sky away from the sun +27 % and +50 % against the spectral
+    reference at -4 and -6 deg with isotropic higher orders, 1.31x)."""
     from atmos_addon.physics.precise import scattering
 
     clear = load("clear").atmosphere
@@ -996,9 +993,9 @@ def test_log_linear_is_the_geometric_line_between_lit_nodes_and_the_straight_lin
 def test_the_preview_tables_are_a_cheaper_table_close_to_the_full_one(without_table_store):
     """The interface's first look after an atmosphere edit reads the preview tables (half the altitudes and sun
     cosines): a clear atmosphere's tile against the full tables' at a camera 30 m up, relative per texel, 99th
-    percentile (measured 1.2 % at a 30 deg sun, 2.2 % at 5 deg since the preview's sun-cosine nodes are every other
-    one of the full table's, stop 49, 6.1 % before; median under 0.02 %). They are kept apart from the full ones,
-    which alone make :func:`tables_ready` true."""
+    percentile (measured 1.2 % at a 30 deg sun, 2.2 % at 5 deg, the preview's sun-cosine nodes every other one of
+    the full table's; 6.1 % at 5 deg with nodes of their own; median under 0.02 %). They are kept apart from the full
+    ones, which alone make :func:`tables_ready` true."""
     from atmos_addon.physics import precise
     from atmos_addon.physics.precise import tables
 
