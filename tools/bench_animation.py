@@ -37,7 +37,7 @@ import atmos_addon  # noqa: E402
 from atmos_addon import api  # noqa: E402
 from atmos_addon.blender import facts  # noqa: E402
 from atmos_addon.blender.apply import precise_tables  # noqa: E402
-from atmos_addon.physics import precise  # noqa: E402
+from atmos_addon.physics.precise import bake as precise_bake  # noqa: E402
 from atmos_addon.sample_scenes import valley  # noqa: E402
 from tools.bench import publish_generated_block  # noqa: E402
 
@@ -134,15 +134,15 @@ _INTEGRATIONS: list = []
 
 
 def _count_integrations() -> None:
-    """Count :func:`atmos_addon.physics.precise.integrate_tile`'s calls in :data:`_INTEGRATIONS` (the bake's own name
-    for it too)."""
-    integrate = precise.integrate_tile
+    """Count :func:`atmos_addon.physics.precise.integrate_tile`'s calls in :data:`_INTEGRATIONS` (replaced in
+    ``precise.bake``, whose bake and bank call it there)."""
+    integrate = precise_bake.integrate_tile
 
     def counted(*args, **kwargs):
         _INTEGRATIONS.append(1)
         return integrate(*args, **kwargs)
 
-    precise.integrate_tile = counted
+    precise_bake.integrate_tile = counted
 
 
 def _moved(change) -> float:

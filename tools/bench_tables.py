@@ -24,6 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from atmos_addon import presets  # noqa: E402
 from atmos_addon.physics import precise  # noqa: E402
+from atmos_addon.physics.precise import parallel  # noqa: E402
 
 PRESETS = ("clear", "overcast", "sunset", "mars")
 
@@ -45,16 +46,16 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", type=Path, help="also write the medians as JSON to this file (./run bench)")
     args = parser.parse_args()
-    threads = precise.WORKERS
+    threads = parallel.WORKERS
     counts = (1, threads) if threads > 1 else (1,)
     times = {(workers, name): [] for workers in counts for name in PRESETS}
     one_edit("clear", 0.5)                                   # imports, the sun table's geometry
     for repeat in range(args.repeats):
         for workers in counts:
-            precise.WORKERS = workers
+            parallel.WORKERS = workers
             for name in PRESETS:
                 times[(workers, name)].append(one_edit(name, 1.0 + 1e-4 * (repeat + 1) * (1 + counts.index(workers))))
-    precise.WORKERS = threads
+    parallel.WORKERS = threads
     medians = {f"{name}/{workers}": [statistics.median(tables for tables, _ in times[(workers, name)]),
                                      statistics.median(tile for _, tile in times[(workers, name)])]
                for workers in counts for name in PRESETS}
@@ -74,7 +75,7 @@ def markdown(result: dict) -> str:
         cells = [f"{value:.2f} s" for w in counts for value in result["medians"][f"{name}/{w}"]]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + (f"\n\nMedians of {result['repeats']} interleaved repeats; {result['threads']} worker "
-                               f"thread(s) on this machine (`precise.WORKERS`).")
+                               f"thread(s) on this machine (`precise.parallel.WORKERS`).")
 
 
 if __name__ == "__main__":

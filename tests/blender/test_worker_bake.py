@@ -9,6 +9,7 @@ Scenes built from scratch (an empty factory file: no world, a bare camera, a sun
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import math
 import threading
@@ -243,8 +244,9 @@ def test_a_sun_move_among_the_banked_keys_shows_their_blend_at_once_then_the_exa
     the two keys around it; a camera altitude the bank has no key of, or an atmosphere whose tables are not built,
     queues none (their own bakes come first)."""
     from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import bake, bank
 
-    monkeypatch.setattr(precise, "_BANK", precise.collections.OrderedDict())
+    monkeypatch.setattr(bank, "_BANK", collections.OrderedDict())
     scene = _scene(addon)                                 # sun at 20 deg: keys 20, 22, 18, 24, 16, 26
     _move_sun(scene, 19.0)
     precise_tables.bake_on_worker(scene)
@@ -260,9 +262,9 @@ def test_a_sun_move_among_the_banked_keys_shows_their_blend_at_once_then_the_exa
     _move_sun(scene, 21.0)
     moved = precise_tables._request(scene)
     integrate = precise.integrate_tile
-    monkeypatch.setattr(precise, "integrate_tile", lambda *args, **kwargs: pytest.fail("integrated"))
+    monkeypatch.setattr(bake, "integrate_tile", lambda *args, **kwargs: pytest.fail("integrated"))
     assert precise_tables.show_banked(scene)
-    monkeypatch.setattr(precise, "integrate_tile", integrate)
+    monkeypatch.setattr(bake, "integrate_tile", integrate)
     assert _image()[precise_tables._KEY] == moved.key + precise_tables.PREVIEW_MARK
     expected = precise.tile_from_bank(moved.atmosphere, altitude, moved.path.keys[0][1], **options)
     first_look = _pixels()
@@ -312,8 +314,9 @@ def test_the_interfaces_follow_shows_a_banked_sun_move_then_bakes_the_exact_tile
     bake of Enable fills the bank, a move among its keys is shown by ``follow`` itself, and the debounced bake (its
     timer fired here) writes the exact tile, which a save would also wait for."""
     from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import bank
 
-    monkeypatch.setattr(precise, "_BANK", precise.collections.OrderedDict())
+    monkeypatch.setattr(bank, "_BANK", collections.OrderedDict())
     monkeypatch.setattr(precise_tables, "interactive", lambda: True)
     scene = _scene(addon)
     precise_tables.bake(scene, force=True)               # Enable's (or Refresh's) bake, in the interface

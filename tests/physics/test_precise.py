@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The Precise level: its tables against direct quadrature, the shader's sampling, stability at the extremes."""
 
+import collections
 import math
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +61,7 @@ def test_multiple_scattering_table_is_finite_positive_and_zero_deep_in_the_shado
     assert isinstance(ms, MultipleScatteringTable) and isinstance(sun, SunTransmittanceTable)
     assert np.all(np.isfinite(ms.psi)) and np.all(ms.psi >= 0.0)
     assert np.all(ms(0.0, 1.0) > 0.0)
-    # midnight: 1e-12 of noon (measured 1.1e-12; 1e-26 before stop 48): its node's rays end where the sun is up to
+    # midnight: 1e-12 of noon (measured 1.1e-12): its node's rays end where the sun is up to
     # 9 deg higher and read J there linearly across the night's one cell, from the node 23 deg down (5e-10 of noon)
     assert np.all(ms(0.0, -1.0) < 1e-11 * ms(0.0, 1.0))
     assert np.all(ms(0.0, -0.5) < 1e-8 * ms(0.0, 1.0))                 # 30 deg down (2.7e-10): a render shows 0
@@ -90,10 +92,10 @@ def test_the_first_moment_stays_physical_at_extreme_hazes(preset, scale, g):
 
 
 def test_the_scattering_orders_are_solved_as_the_direct_solve_would():
-    """GMRES on (I - A) x = source (:func:`precise.solve_orders`) against LU: a transport like the presets' (spectral
+    """GMRES on (I - A) x = source (:func:`solver.solve_orders`) against LU: a transport like the presets' (spectral
     radius 0.6, the overcast's), one so close to conservative that GMRES stops at its step limit and hands over to the
     direct solve, and a dark source. Then a whole table, the overcast preset's, against one solved directly."""
-    from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import solver
 
     rng = np.random.default_rng(7)
     n = 600
@@ -102,36 +104,37 @@ def test_the_scattering_orders_are_solved_as_the_direct_solve_would():
     for radius, limit in ((0.6, 60), (0.999, 5)):
         transport = base * (radius / np.abs(np.linalg.eigvals(base)).max())
         want = np.linalg.solve(np.eye(n) - transport, source)
-        got = precise.solve_orders(transport, source, max_iterations=limit)
+        got = solver.solve_orders(transport, source, max_iterations=limit)
         assert np.abs(got - want).max() <= 1e-8 * np.abs(want).max(), radius
-    np.testing.assert_array_equal(precise.solve_orders(base * 0.001, np.zeros(n)), np.zeros(n))
+    np.testing.assert_array_equal(solver.solve_orders(base * 0.001, np.zeros(n)), np.zeros(n))
 
     atm = load("overcast").atmosphere
     sun = SunTransmittanceTable(atm)
     iterative = MultipleScatteringTable(atm, sun)
-    direct = precise.solve_orders
+    direct = solver.solve_orders
     try:
-        precise.solve_orders = lambda transport, rhs: np.linalg.solve(np.eye(rhs.size) - transport, rhs)
+        solver.solve_orders = lambda transport, rhs: np.linalg.solve(np.eye(rhs.size) - transport, rhs)
         reference = MultipleScatteringTable(atm, sun)
     finally:
-        precise.solve_orders = direct
+        solver.solve_orders = direct
     assert np.abs(iterative.psi - reference.psi).max() <= 1e-8 * reference.psi.max()
     assert np.abs(iterative.first_moment - reference.first_moment).max() <= 1e-8 * reference.psi.max()
 
 
 def test_the_tables_built_on_threads_are_those_of_one_thread(monkeypatch):
-    """The multiple-scattering table's altitudes and the tile's rows are built on :data:`precise.WORKERS` threads, each
+    """The multiple-scattering table's altitudes and the tile's rows are built on :data:`parallel.WORKERS` threads, each
     writing its own slices: the same numbers to the bit as one thread (3 threads here, whatever the machine), and a
     thread's exception reaches the caller."""
     from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import bake, parallel
 
     atm = load("mars").atmosphere.replace(mie_g=0.7)     # not a preset's: no cached tables
     shape = TableShape(17, 4, 12)
 
     def build(workers: int):
-        monkeypatch.setattr(precise, "WORKERS", workers)
+        monkeypatch.setattr(parallel, "WORKERS", workers)
         ms = MultipleScatteringTable(atm, SunTransmittanceTable(atm), n_altitudes=12, n_cosines=17)
-        monkeypatch.setattr(precise, "atmosphere_tables", lambda *args, **kwargs: (ms._sun_table, ms))
+        monkeypatch.setattr(bake, "atmosphere_tables", lambda *args, **kwargs: (ms.sun_table, ms))
         tile = precise.integrate_tile(atm, 500.0, math.radians(3.0), shape=shape)
         return ms, tile
 
@@ -146,14 +149,14 @@ def test_the_tables_built_on_threads_are_those_of_one_thread(monkeypatch):
             raise ArithmeticError("block 2")
 
     with pytest.raises(ArithmeticError, match="block 2"):
-        precise.in_parallel(fails, 4)
+        parallel.in_parallel(fails, 4)
 
 
 def test_the_sun_tables_share_their_geometry_not_their_coefficients():
     """An edit of the haze, its colour or the ozone's amount reuses the sun table's Chapman and ozone grids (they
     depend on the planet, the top and the scale heights only) and transmits as a table built from nothing; a new
     scale height builds new grids."""
-    from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import transmittance
 
     clear = load("clear").atmosphere
     edited = clear.replace(mie_scattering=clear.mie_scattering * 3.0, rayleigh_scattering=clear.rayleigh_scattering
@@ -165,7 +168,7 @@ def test_the_sun_tables_share_their_geometry_not_their_coefficients():
     radius = clear.planet_radius + rng.uniform(0.0, 50_000.0, 2000)
     cosine = rng.uniform(-0.3, 1.0, 2000)
     shared = second(radius, cosine)
-    precise._SUN_GEOMETRY.clear()
+    transmittance._SUN_GEOMETRY.clear()
     fresh = SunTransmittanceTable(edited)
     assert fresh.log_ch is not first.log_ch
     np.testing.assert_array_equal(shared, fresh(radius, cosine))
@@ -187,7 +190,7 @@ def _stays_above_ground(altitude, views, distances, atm):
 @pytest.mark.parametrize("atm", [EARTH, MARS], ids=["earth", "mars"])
 def test_the_ray_integrals_split_at_a_point_down_the_ray(atm):
     """J(x -> end) = J(x -> p) + T(x, p) J(p -> end) for the single and the multiple scattering, and the optical depths
-    add: the identity a table of whole rays relies on (tools/measure_sun_free_table.py's S(x) - T S(p)), and a check
+    add: the identity a table of whole rays relies on (Bruneton's S(x) - T S(p)), and a check
     that ``ray_integrals`` carries the geometry down the ray (the point's own view and sun zenith cosines, nu the
     same)."""
     tables = atmosphere_tables(atm)
@@ -232,9 +235,9 @@ def test_each_rows_columns_start_at_its_vertical_ray():
 @pytest.mark.parametrize("atm", [EARTH, MARS], ids=["earth", "mars"])
 def test_steep_rays_to_high_points_follow_the_integrals(atm):
     """Looking up at a peak or a canyon wall kilometres away (rays 30-89 deg up, 3-30 km long) under a low sun: the
-    tile within 5 % of the horizon sky of the integrals along each ray (``tools/measure_sun_free_table.py``): 1.8 %
-    on Earth, 4.6 % on Mars; with the columns of before (D (k / (N_d - 1))^2 for every row, a steep ray's neighbours
-    a vertical ray cut short and rays far lower) 7.5 % and 37 %."""
+    tile within 5 % of the horizon sky of the integrals along each ray (``ray_inscattering``): 1.8 % on Earth, 4.6 %
+    on Mars; with one set of columns for every row (D (k / (N_d - 1))^2, a steep ray's neighbours a vertical ray cut
+    short and rays far lower) 7.5 % and 37 %."""
     tables = atmosphere_tables(atm)
     worst = 0.0
     for camera_altitude, sun_deg in ((2.0, 1.0), (1000.0, 5.0), (1000.0, -3.0)):
@@ -414,7 +417,8 @@ def test_sky_from_the_table_matches_the_brute_force_sky(preset):
     (the dome's ground-level sun darkens the upper sky, worst at sunset)."""
     atm = EARTH if preset == "clear" else load(preset).atmosphere
     views = _sky_views([0.2, 0.5, 1, 2, 3, 5, 8, 12, 20, 30, 45, 60, 80, 90], [0, 10, 30, 60, 90, 135, 180])
-    # by day within 0.5 % on average since each row's columns start at its vertical ray (0.4-1.0 % before: 1.2 %)
+    # by day within 0.5 % on average, each row's columns starting at its vertical ray (0.4-1.0 % with one set of
+    # columns for every row: 1.2 %)
     for sun_deg, mean_limit, max_limit in ((60.0, 0.005, 0.08), (20.0, 0.005, 0.08), (5.0, 0.005, 0.08),
                                            (1.0, 0.04, 0.30)):
         e = math.radians(sun_deg)
@@ -461,9 +465,9 @@ def test_far_surfaces_composite_to_the_precise_sky():
 def test_multiple_scattering_follows_the_complete_reference_over_a_dark_and_a_bright_ground(albedo):
     # Ground vista (sun 40 deg, level views 100 m to 30 km): Precise's L_in with its multiple-scattering term
     # against every order by Monte Carlo, over the same Lambertian ground. Measured mean ratios 0.982 (black
-    # ground) and 0.998 (albedo 0.3). Hillaire's isotropic table gave 0.90 and 0.98, and 0.88 at albedo 0.3 before
-    # it let the skylight bounce off the ground; lighting the ground with the mean radiance at the ground (which
-    # counts the ground's own light) instead of the sky's irradiance gave 1.044.
+    # ground) and 0.998 (albedo 0.3). Hillaire's isotropic table gives 0.90 and 0.98, and 0.88 at albedo 0.3 where
+    # the skylight does not bounce off the ground; lighting the ground with the mean radiance at the ground (which
+    # counts the ground's own light) instead of the sky's irradiance gives 1.044.
     from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import bake_tile
     from atmos_addon.physics.precise import evaluate as evaluate_precise
@@ -483,11 +487,10 @@ def test_multiple_scattering_follows_the_complete_reference_over_a_dark_and_a_br
 
 def test_multiple_scattering_at_the_blue_hour_is_not_an_interpolation_artefact():
     # Sun 4 deg below the horizon: Psi_ms falls by orders of magnitude within a few degrees of the terminator. With
-    # the sun cosines linear (32 of them) the table interpolated across that fall: L_in 1.53x the complete
-    # reference on average (Hillaire's isotropic table). Crowded at mu_s = 0 it agrees with a 256-sample table:
-    # measured 0.81 then, 1.20 with the orders carried between points and the view-dependent last scattering
-    # (per ray 0.88-1.38x against 24000 paths: the isotropic third and higher orders, docs/quality.md), 0.95 with
-    # 800 paths of seed 13 later, 1.02 since the table carries the light's first moment (December 2026).
+    # the sun cosines linear (32 of them) a table interpolates across that fall: L_in 1.53x the complete reference
+    # on average (Hillaire's isotropic table). Crowded at mu_s = 0 it agrees with a 256-sample table. Measured 1.02
+    # with the light's first moment carried (800 paths of seed 13); with isotropic third and higher orders 1.20
+    # (per ray 0.88-1.38x against 24000 paths, docs/quality.md).
     from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import bake_tile
     from atmos_addon.physics.precise import evaluate as evaluate_precise
@@ -536,11 +539,11 @@ def test_the_view_dependent_multiple_scattering_averages_to_the_mean_radiance(pr
                                              ("sunset_away", 0.95, 1.08)])
 def test_multiple_scattering_at_a_low_sun_follows_the_complete_reference(name, low, high):
     # Mean L_in / the Monte Carlo reference (800 paths) at a 1 deg sun. Measured: overcast 1.02, clear toward the
-    # sun 0.99, away 1.02 (stop 47; 1.03, 0.99, 1.02 before the first order was scattered once more by direction).
-    # With the higher orders an isotropic mean radiance (no first moment, no delta-Eddington split; until December
-    # 2026) 0.75, 0.95 and 0.96: the light of the thick forward-scattering haze that keeps
-    # travelling away from a low sun was scattered every way at the third order. Hillaire's table (isotropic, the
-    # higher orders of a uniformly lit medium) gave about 0.2 in the overcast, 0.8 toward and 0.72 away.
+    # sun 0.99, away 1.02 (1.03, 0.99, 1.02 with the second order a P1 field instead of carried by direction).
+    # With the higher orders an isotropic mean radiance (no first moment, no delta-Eddington split) 0.75, 0.95 and
+    # 0.96: the light of the thick forward-scattering haze that keeps travelling away from a low sun is scattered
+    # every way at the third order. Hillaire's table (isotropic, the higher orders of a uniformly lit medium) gives
+    # about 0.2 in the overcast, 0.8 toward and 0.72 away.
     ratio = float(np.mean(_ratios_to_complete_reference(name)))
     assert low < ratio < high, ratio
 
@@ -584,9 +587,9 @@ def test_the_multiply_scattered_light_of_a_martian_sunset_keeps_its_direction():
 def test_the_default_meets_the_low_sun_targets_against_the_stored_complete_reference(name):
     """The issue's targets for a sunset (luminance within 5 %, CIE xy within 0.01) against the complete reference at
     192 000 paths a ray and channel (two seeds averaged; stored by ``tools/store_complete_reference.py``, whose
-    command the file holds: ten minutes to trace, so CI reads it). Measured: the Martian sunset 3.7 %, xy 0.0058 since
-    the forward cut follows each channel's g (stop 52, ``precise.grid_cut_deg``); with one 30 deg cut for every
-    channel 5.6 %, xy 0.0097 (red and green 2-6 % too bright, blue 2-10 % too dark)."""
+    command the file holds: ten minutes to trace, so CI reads it). Measured: the Martian sunset 3.7 %, xy 0.0058 with
+    the forward cut following each channel's g (``precise.grid_cut_deg``); with one 30 deg cut for every channel
+    5.6 %, xy 0.0097 (red and green 2-6 % too bright, blue 2-10 % too dark)."""
     from atmos_addon.physics.quality import bench_case, errors_of, reference
 
     stored = np.load(Path(__file__).resolve().parent / "data" / f"complete_{name}.npz")
@@ -600,20 +603,21 @@ def test_the_default_meets_the_low_sun_targets_against_the_stored_complete_refer
 def test_the_forward_cut_grows_with_the_hazes_g():
     """30 deg at the clear haze's g (every Earth case of the bench as it was), 6 deg per 0.1 of g, within 20-35 deg;
     the share of the peak carried on the sun's line grows with g."""
-    from atmos_addon.physics.precise import _cone_fraction, grid_cut_deg
+    from atmos_addon.physics.precise import grid_cut_deg
+    from atmos_addon.physics.precise.directions import cone_fraction
 
     np.testing.assert_allclose(grid_cut_deg([0.6, 0.68, 0.76, 0.78, 0.9, -0.5]), [20.4, 25.2, 30.0, 31.2, 35.0, 20.0])
-    fractions = _cone_fraction(np.array([0.63, 0.68, 0.78]))
+    fractions = cone_fraction(np.array([0.63, 0.68, 0.78]))
     assert 0.0 < fractions[0] < fractions[1] < fractions[2] < 0.78 ** 2
-    assert _cone_fraction(np.array([-0.3, 0.0, 0.5]))[:2].tolist() == [0.0, 0.0]
+    assert cone_fraction(np.array([-0.3, 0.0, 0.5]))[:2].tolist() == [0.0, 0.0]
 
 
 def test_a_high_sun_keeps_the_difference_between_toward_and_away():
     # Mars at noon (sun 80 deg up, level views 45 and 180 deg from the sun's azimuth): mean L_in / the Monte Carlo
     # reference (1000 paths a ray and channel, seed 14), toward and away. Measured 1.00 and 1.00 (balance 1.004;
-    # seed 16: 0.994) since the sun-cosine nodes are even in elevation above 23 deg (stop 48); with the former nodes,
-    # whose last cell ran from 61.5 deg to the zenith, 0.97 and 1.04 (balance 0.93; 4.8 % against 64 000 paths, now
-    # 0.3 %).
+    # seed 16: 0.994), the sun-cosine nodes even in elevation above 23 deg; with nodes even in sqrt|mu_s|, whose last
+    # cell runs from 61.5 deg to the zenith, 0.97 and 1.04 (balance 0.93; 4.8 % against 64 000 paths where these
+    # nodes give 0.3 %).
     from atmos_addon.physics.quality import bench_case
 
     case = bench_case("mars_noon")
@@ -658,37 +662,37 @@ def test_the_grid_forward_cone_is_the_peak_above_its_edge():
     """f_c (closed form) is the share of Henyey-Greenstein above its value at the cone's edge, inside the cone: the
     flattened phase function holds the rest (a numerical integral); none for a haze without a forward peak, more for a
     more peaked one, and less than delta-Eddington's g^2 (the grid resolves more of the peak than a P1 field)."""
-    from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import directions
 
     mu = np.linspace(-1.0, 1.0, 400_001)
     g = np.array([0.3, 0.63, 0.78])
-    cone = precise._cone_fraction(g)
-    cut = precise._cut_phase_hg(mu, g)
+    cone = directions.cone_fraction(g)
+    cut = directions.cut_phase_hg(mu, g)
     rest = 2.0 * np.pi * np.sum(0.5 * (cut[1:] + cut[:-1]) * np.diff(mu)[:, None], axis=0)   # (numpy 1.x: no trapezoid)
     np.testing.assert_allclose(rest + cone, 1.0, atol=1e-6)
     assert cone[0] > 0.0 and np.all(np.diff(cone) > 0.0) and np.all(cone < g ** 2)
-    np.testing.assert_array_equal(precise._cone_fraction(np.array([0.0, -0.3, -0.9])), 0.0)
+    np.testing.assert_array_equal(directions.cone_fraction(np.array([0.0, -0.3, -0.9])), 0.0)
     backward = np.array([-0.3, -0.5, -0.9])
-    np.testing.assert_array_equal(precise._cut_phase_hg(mu, backward), phase_hg(mu, backward))
-    np.testing.assert_allclose(precise.grid_forward_fraction(MARS), precise._cone_fraction(MARS.mie_g))
+    np.testing.assert_array_equal(directions.cut_phase_hg(mu, backward), phase_hg(mu, backward))
+    np.testing.assert_allclose(directions.grid_forward_fraction(MARS), directions.cone_fraction(MARS.mie_g))
 
 
 def test_the_view_weights_integrate_the_phase_functions_over_the_grid_cells():
     """Every view direction's weights sum to 1 (a uniform field is scattered unchanged), the haze's less its forward
     cone to 1 - f_c; the raw cell averages already integrate a peaked phase function to 1 over the grid where samples
     at the cells' centres fall short (0.95 at g 0.78)."""
-    from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import directions
 
     g = (0.63, 0.68, 0.78)
-    views, rayleigh, haze, cut = precise._view_weights(6, 16, 17, 9, g)
+    views, rayleigh, haze, cut = directions.view_weights(6, 16, 17, 9, g)
     assert views.shape == (17 * 9, 3) and rayleigh.shape == (17 * 9, 192) and haze.shape == cut.shape == (153, 192, 3)
     np.testing.assert_allclose(rayleigh.sum(axis=1), 1.0, rtol=1e-12)
     np.testing.assert_allclose(haze.sum(axis=1), 1.0, rtol=1e-12)
-    np.testing.assert_allclose(cut.sum(axis=1), np.broadcast_to(1.0 - precise._cone_fraction(np.array(g)), (153, 3)),
+    np.testing.assert_allclose(cut.sum(axis=1), np.broadcast_to(1.0 - directions.cone_fraction(np.array(g)), (153, 3)),
                                rtol=1e-12)
-    assert not haze.flags.writeable and precise._view_weights(6, 16, 17, 9, g)[2] is haze   # cached
-    dirs, solid_angle = precise._direction_grid(6, 16)
-    raw = precise._cell_weights(views, 6, 16, lambda mu: phase_hg(mu, 0.78)).sum(axis=1)
+    assert not haze.flags.writeable and directions.view_weights(6, 16, 17, 9, g)[2] is haze   # cached
+    dirs, solid_angle = directions.direction_grid(6, 16)
+    raw = directions.cell_weights(views, 6, 16, lambda mu: phase_hg(mu, 0.78)).sum(axis=1)
     centres = (phase_hg(views @ dirs.T, 0.78) * solid_angle).sum(axis=1)
     assert np.abs(raw - 1.0).max() < 0.006 and centres.min() < 0.96
 
@@ -719,7 +723,8 @@ def test_the_sky_view_lights_as_the_precise_sky(preset):
     in-scattering of a ground camera's short rays grows like 1 / |v_z| between rows, and the bilinear chord lies
     above it: 5 % too much light 0.5-2 deg below the horizon (measured), which only shows where the ground is unlit
     (the sun below the horizon: a down-facing surface under a twilight sky): measured 2.9-6.8 % on Mars at a sun 4
-    deg down (the blue the most) since the multiple-scattering table carries the light's first moment, 5 % before."""
+    deg down (the blue the most), the multiple-scattering table carrying the light's first moment (5 % with
+    isotropic higher orders)."""
     atm = EARTH if preset == "clear" else load(preset).atmosphere
     rng = np.random.default_rng(3)
     views = rng.normal(size=(60_000, 3))
@@ -791,11 +796,10 @@ def test_key_tiles_of_a_pan_a_climb_a_turn_and_a_jump():
 
 def test_blended_key_tiles_follow_the_tile_baked_between_them():
     """Half way between two key tiles (the worst place), the blend against the tile baked there: relative luminance
-    error, median and 99th percentile (tools/measure_key_tiles.py prints the whole table). The 6 -> 5 deg pair
-    straddles a sun-cosine node of the multiple-scattering table (5.7 deg), whose light is log-linear on each side
-    since December 2026: aerial 0.37 % / 0.55 % measured (0.20 % / 0.30 % when it was linear); 0.51 % / 0.77 % since
-    stop 48 reads a sun cosine linearly in the elevation between two nodes (the sky 0.32 % / 0.58 %), and the 1.5 -> 1
-    deg pair's aerial median 0.47 %."""
+    error, median and 99th percentile (``mid_step_error``). The 6 -> 5 deg pair straddles a sun-cosine node of the
+    multiple-scattering table (5.7 deg), whose light is log-linear between nodes and whose sun cosine is read linearly
+    in the elevation: aerial 0.51 % / 0.77 % measured (the sky 0.32 % / 0.58 %; 0.20 % / 0.30 % with the light
+    linear between nodes), and the 1.5 -> 1 deg pair's aerial median 0.47 %."""
     first = bake_tile(EARTH, 2.0, math.radians(20.0), max_distance_m=shared_max_distance([2.0, 400.0], EARTH))
     second = bake_tile(EARTH, 400.0, math.radians(18.0), max_distance_m=first.max_distance_m)
     same = blend_tiles(first, second, 0.0, 2.0, EARTH)
@@ -843,8 +847,9 @@ def test_the_bank_blends_its_two_keys_around_the_sun_and_integrates_nothing_else
     """A sun between two banked keys gets their blend (what the shader's blend of two key tiles samples); with either
     key missing, nothing (and nothing is integrated to find out)."""
     from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import bake, bank
 
-    monkeypatch.setattr(precise, "_BANK", precise.collections.OrderedDict())
+    monkeypatch.setattr(bank, "_BANK", collections.OrderedDict())
     sun = math.radians(21.3)
     k, weight = precise.sun_key_bracket(sun)
     assert precise.tile_from_bank(EARTH, 40.0, sun) is None and not precise.banked(EARTH, 40.0)
@@ -854,7 +859,7 @@ def test_the_bank_blends_its_two_keys_around_the_sun_and_integrates_nothing_else
     high = precise.bank_tile(EARTH, 40.0, k + 1)
     integrate = precise.integrate_tile
     assert np.array_equal(high.a_mie, integrate(EARTH, 40.0, math.radians(22.0)).a_mie)
-    monkeypatch.setattr(precise, "integrate_tile", lambda *args, **kwargs: pytest.fail("integrated"))
+    monkeypatch.setattr(bake, "integrate_tile", lambda *args, **kwargs: pytest.fail("integrated"))
     assert precise.bank_tile(EARTH, 40.0, k) is low and not low.a_rayleigh.flags.writeable   # kept, shared
     blended = precise.tile_from_bank(EARTH, 40.0, sun)
     expected = blend_tiles(low, high, weight, 40.0, EARTH)
@@ -862,8 +867,8 @@ def test_the_bank_blends_its_two_keys_around_the_sun_and_integrates_nothing_else
         assert np.array_equal(getattr(blended, name), getattr(expected, name)), name
     assert weight == pytest.approx(0.65)
     assert precise.tile_from_bank(EARTH, 40.0, sun, multiple_scattering=False) is None   # another table's keys
-    monkeypatch.setattr(precise, "integrate_tile", integrate)
-    stop = precise.threading.Event()
+    monkeypatch.setattr(bake, "integrate_tile", integrate)
+    stop = threading.Event()
     stop.set()                                   # a key no longer wanted: its integration ends, nothing is kept
     with pytest.raises(precise.TileCancelled):
         precise.integrate_tile(EARTH, 40.0, sun, stop=stop)
@@ -873,15 +878,12 @@ def test_the_bank_blends_its_two_keys_around_the_sun_and_integrates_nothing_else
 def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
     """Across the terminator the multiply scattered light falls by orders of magnitude within a few degrees of sun:
     the table interpolates it log-linearly between its sun-cosine nodes, so 33 nodes give what 65 give (S_R + S_M
-    in luminance, the clear preset, ground albedo 0.3, 4 altitudes x 7 suns x 64 views: measured 0.96-1.03 at
-    suns 4-8 deg down, within 1 % from 2 deg down up; 0.96-1.06 since the table scatters the first order once
-    more by direction, stop 47, its points read linearly between the nodes: 1.06 at 8 deg down, 0.96-1.03 at 4 and
-    6); since stop 48's nodes, both tables read linearly in the sun's elevation between nodes: 1.02-1.075 at 8 deg
-    down, 1.00-1.05 at 4 and 6, 0.984-1.008 from 2 deg down up; with stop 49's geometric cells 1.008-1.066 at 8 deg
-    down, 0.980-1.037 at 4 and 6, 0.988-1.010 from 2 deg down up). Linearly, the same 33 nodes made it up to 1.31x too
-    bright at 4-8 deg down (the twilight sky away from the sun +27 % and +50 % against the spectral reference at -4 and
-    -6 deg); 1.19x since the table carries the light's first moment (December 2026)."""
-    from atmos_addon.physics import precise
+    in luminance, the clear preset, ground albedo 0.3, 4 altitudes x 7 suns x 64 views, both tables reading a sun
+    cosine linearly in the elevation between the nodes of ``SunCosineNodes``: measured 1.008-1.066 at 8 deg down,
+    0.980-1.037 at 4 and 6, 0.988-1.010 from 2 deg down up). Linearly between the nodes, the same 33 nodes make it
+    up to 1.19x too bright at 4-8 deg down (the twilight sky away from the sun +27 % and +50 % against the spectral
+    reference at -4 and -6 deg with isotropic higher orders, 1.31x)."""
+    from atmos_addon.physics.precise import scattering
 
     clear = load("clear").atmosphere
     sun = SunTransmittanceTable(clear)
@@ -902,7 +904,7 @@ def test_the_twilight_light_does_not_hang_on_the_sun_cosine_nodes(monkeypatch):
     log_linear = ratio()
     assert np.all(np.abs(log_linear - 1.0) < 0.075), (log_linear.min(), log_linear.max())
     assert np.all(np.abs(log_linear[:, 3:] - 1.0) < 0.02)   # from 2 deg down to the day
-    monkeypatch.setattr(precise, "_log_linear", lambda low, high, fraction: low + fraction * (high - low))
+    monkeypatch.setattr(scattering, "log_linear", lambda low, high, fraction: low + fraction * (high - low))
     assert ratio()[:, :3].max() > 1.12   # the straight line, which the test would catch
 
 
@@ -968,15 +970,15 @@ def test_the_camera_sky_view_rows_and_blend():
 
 
 def test_log_linear_is_the_geometric_line_between_lit_nodes_and_the_straight_line_elsewhere():
-    """``_log_linear`` (the tables' interpolation across the terminator): low^(1 - f) high^f where both nodes are
+    """``log_linear`` (the tables' interpolation across the terminator): low^(1 - f) high^f where both nodes are
     positive, low + f (high - low) where either is 0 or below (rounding deep in the planet's shadow), in the
     arrays' own dtype; the fast path that fixes only the dark cells gives what ``np.where`` over both gives."""
-    from atmos_addon.physics.precise import _log_linear
+    from atmos_addon.physics.precise.interpolation import log_linear
 
     low = np.array([[1.0, 0.0, 4.0, -1e-9, 2.0, 1e-30]], np.float32)
     high = np.array([[4.0, 3.0, 0.0, 5.0, 2.0, 1e-20]], np.float32)
     fraction = np.array([[0.5]], np.float32)
-    result = _log_linear(low, high, fraction)
+    result = log_linear(low, high, fraction)
     assert result.dtype == np.float32
     np.testing.assert_allclose(result[0], [2.0, 1.5, 2.0, 2.5, 2.0, 1e-25], rtol=1e-5)
     rng = np.random.default_rng(3)
@@ -985,16 +987,17 @@ def test_log_linear_is_the_geometric_line_between_lit_nodes_and_the_straight_lin
     positive = (low > 0.0) & (high > 0.0)
     expected = np.where(positive, low * (np.where(positive, high, 1.0) / np.where(positive, low, 1.0)) ** fraction,
                         low + fraction * (high - low))
-    assert np.array_equal(_log_linear(low, high, fraction), expected)
+    assert np.array_equal(log_linear(low, high, fraction), expected)
 
 
 def test_the_preview_tables_are_a_cheaper_table_close_to_the_full_one(without_table_store):
     """The interface's first look after an atmosphere edit reads the preview tables (half the altitudes and sun
     cosines): a clear atmosphere's tile against the full tables' at a camera 30 m up, relative per texel, 99th
-    percentile (measured 1.2 % at a 30 deg sun, 2.2 % at 5 deg since the preview's sun-cosine nodes are every other
-    one of the full table's, stop 49, 6.1 % before; median under 0.02 %). They are kept apart from the full ones,
-    which alone make :func:`tables_ready` true."""
+    percentile (measured 1.2 % at a 30 deg sun, 2.2 % at 5 deg, the preview's sun-cosine nodes every other one of
+    the full table's; 6.1 % at 5 deg with nodes of their own; median under 0.02 %). They are kept apart from the full
+    ones, which alone make :func:`tables_ready` true."""
     from atmos_addon.physics import precise
+    from atmos_addon.physics.precise import tables
 
     atm = Atmosphere(mie_scattering=Atmosphere().mie_scattering * 1.0137)   # an atmosphere no other test builds
     assert not precise.tables_ready(atm)
@@ -1011,4 +1014,4 @@ def test_the_preview_tables_are_a_cheaper_table_close_to_the_full_one(without_ta
     assert (table.n_alt, table.n_mu) == (24, 32) and atmosphere_tables(atm)[1] is table
     for scale in (1.01, 1.02, 1.03):
         atmosphere_tables(Atmosphere(mie_scattering=atm.mie_scattering * scale), preview=True)
-    assert sum(key[2] for key in precise._TABLES) == 2 and precise.tables_ready(atm)   # the previews kept apart
+    assert sum(key[2] for key in tables._TABLES) == 2 and precise.tables_ready(atm)   # the previews kept apart

@@ -506,7 +506,8 @@ _worker: list[concurrent.futures.ThreadPoolExecutor] = []
 
 
 def _executor() -> concurrent.futures.ThreadPoolExecutor:
-    """One worker thread (its bake runs ``physics.precise.WORKERS`` threads of its own), made when first needed."""
+    """One worker thread (its bake runs ``physics.precise.parallel.WORKERS`` threads of its own), made when first
+    needed."""
     if not _worker:
         _worker.append(concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="atmos-bake"))
     return _worker[0]
