@@ -4,7 +4,8 @@ Open Shading Language, x the other scenes of the file) to the configuration actu
 
 Pure Python (no ``bpy``): :class:`SceneFacts` holds what the rules depend on, read off a scene by the Blender layer
 (``atmos_addon.blender.facts``) or written by hand in a test; :func:`plan_for` returns the :class:`Plan`. The
-orchestrator applies a plan, the appliers build what it lists, the panel and the CLI print its notes. Every
+orchestrator computes one plan per user action and hands it to the appliers, which build what it lists; the panel
+and the CLI print its notes. Every
 fallback is decided here, once, with the sentence that explains it:
 
 - **Mode.** Compositor (both engines: the materials write AOVs, the compositor combines them per pixel), Per Pixel
@@ -27,7 +28,7 @@ fallback is decided here, once, with the sentence that explains it:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 MODES = ("COMPOSITOR", "PER_PIXEL", "IN_RENDER")
 #: The modes whose materials write AOVs that the compositor reads.
@@ -132,6 +133,15 @@ class Plan:
     surface_modes: tuple[str, ...]   #: the AOV modes whose outputs the shared material group holds
     notes: tuple[str, ...]           #: one sentence per fallback or warning, for the panel, the report, the CLI
     viewport: str                    #: what the 3D viewport's Rendered shading shows of the haze
+    facts: SceneFacts = field(repr=False)  #: what the plan was made from (:meth:`with_facts`)
+
+    def with_facts(self, **changes) -> Plan:
+        """The plan once the action holding this one has itself changed some of its facts (Auto's choice of level,
+        a bake's number of key tiles): made from :attr:`facts` with ``changes``, the scene not read again; this
+        plan itself where they change nothing."""
+        if all(getattr(self.facts, name) == value for name, value in changes.items()):
+            return self
+        return plan_for(replace(self.facts, **changes))
 
     @property
     def compositor(self) -> str | None:
@@ -252,4 +262,4 @@ def plan_for(facts: SceneFacts) -> Plan:
                 multiple_scattering=precise and facts.multiple_scattering, blend=precise and facts.key_tiles > 1,
                 aovs=AOVS[mode],
                 surface_modes=tuple(sorted(aov_modes)) or ("COMPOSITOR",), notes=notes,
-                viewport=viewport_note(facts.engine, mode))
+                viewport=viewport_note(facts.engine, mode), facts=facts)

@@ -5,7 +5,7 @@
 
 In In-Render mode the world is multiplied by exp(tau_dome(d)) on camera, glossy and transmission rays, the
 optical depth of the camera-centred domes along d. A sky ray reflected at a point p leaves the domes after
-l_i(p, d) instead of R_i(d); without the domes' transparent filters (``atmos_addon.nodes.in_render.dome_filter``)
+l_i(p, d) instead of R_i(d); without the domes' transparent filters (``atmos_addon.node_groups.in_render.dome_filter``)
 the reflected sky would be off by the factor
 
     r = exp(sum_i sigma_i (R_i(d) - l_i(p, d)))

@@ -25,6 +25,10 @@ class Debounced:
             bpy.app.timers.unregister(self._timer)
         bpy.app.timers.register(self._timer, first_interval=self.delay_s)
 
+    def discard(self, scene: bpy.types.Scene) -> None:
+        """Drop ``scene`` from the queue (the timer runs on for the others)."""
+        self._pending.discard(scene.name)
+
     def _run(self):
         for name in sorted(self._pending):
             scene = bpy.data.scenes.get(name)

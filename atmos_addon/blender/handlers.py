@@ -32,25 +32,28 @@ def on_depsgraph_update(scene, depsgraph) -> None:
     settings = getattr(scene, "atmos", None)
     if settings is None or not settings.enabled:
         return
-    if orchestrator.mode_mismatch(scene):  # the render engine or the mode changed: switch Compositor <-> In-Render
+    plan = facts.plan_of(scene)
+    if orchestrator.mode_mismatch(scene, plan):  # the engine or the mode changed: switch Compositor <-> In-Render
         orchestrator.enable_effect(scene)
         return
     edited = materials.edited_materials(depsgraph)   # first: what follows may free the updates' evaluated copies
     key_tiles = scene.get(facts.KEY_TILES)
     if sync.sun_moved(scene):
-        orchestrator.update(scene)
+        orchestrator.update(scene, plan)
         _redraw_properties()   # the sun's values it shows are written without a tag, which would redraw it
     elif sync.note_camera(scene):   # the Precise tables follow the camera
-        precise_tables.follow(scene)
+        if plan.tables:
+            precise_tables.follow(scene)
     elif any(depsgraph.id_type_updated(kind) for kind in ("ACTION", "OBJECT", "SCENE")):
-        sun_bake.follow(scene)   # keys edited at other frames, a parent or a target moved, the frame range changed
-    orchestrator.follow_key_tiles(scene, key_tiles)   # an animation that started or stopped: blend or not
+        # keys edited at other frames, a parent or a target moved, the frame range changed
+        sun_bake.follow(scene, plan)
+    plan = orchestrator.follow_key_tiles(scene, key_tiles, plan)   # an animation that started or stopped: blend or not
     if edited:
         materials.follow_edits(edited)   # a surface Cycles folds away stays opaque
     if depsgraph.id_type_updated("SCENE"):
         compositor.follow_shown_view_layer(scene)   # a view layer switched on or off: the shown one composited
     if orchestrator.note_counts(scene):
-        orchestrator.pick_up_new_materials(scene)
+        orchestrator.pick_up_new_materials(scene, plan)
 
 
 def _redraw_properties() -> None:
@@ -124,7 +127,8 @@ def follow_render_settings(*_args) -> None:
     changes those settings in the interface; Cycles' settings do not tag the depsgraph, so the depsgraph handler
     would see the change only at the next edit."""
     for scene in bpy.data.scenes:
-        if getattr(scene, "atmos", None) is not None and orchestrator.mode_mismatch(scene):
+        settings = getattr(scene, "atmos", None)
+        if settings is not None and settings.enabled and orchestrator.mode_mismatch(scene, facts.plan_of(scene)):
             orchestrator.enable_effect(scene)
 
 

@@ -1,15 +1,17 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The one place that applies a scene's plan: enable, refresh, update after an edit, switch mode, disable.
+"""The one place that applies a scene's plan: enable, refresh, update after an edit, switch mode or level, disable.
 
-The operators, the panel's switches, the API, the CLI and the handlers all come here. Enabling asks the plan
-(:func:`.facts.plan_of`) what to build and has each applier build its part: the material group and the nodes in
-every material (:mod:`.materials`, or :mod:`.in_render` in In-Render mode), the compositor (:mod:`.compositor`),
-the sky in the world (:mod:`.world`), the sun lamp (:mod:`.sun_lamp`), the haze domes (:mod:`.in_render`), the
-Precise tables (:mod:`.precise_tables`); then :mod:`.sync` writes the values the built nodes read and drives the
-sun's from the lamp (:mod:`.sun_drivers`), and :mod:`.sun_bake` records an animated sun for the key tiles.
-:func:`update` runs after every settings edit: it rebuilds what the plan no longer matches (cheap when everything
-does) and writes the values. Disabling has every applier remove exactly what
-it added. All of it is idempotent.
+The operators, the panel's switches, the API, the CLI and the handlers all come here. Each action makes the scene's
+plan once, first (:func:`.facts.plan_of`), and hands it down: every applier builds its part with
+``install(scene, plan)``: the sun lamp (:mod:`.sun_lamp`), the Precise tables (:mod:`.precise_tables`), the nodes
+in every material (:mod:`.materials`, or :mod:`.in_render` in In-Render mode), the compositor (:mod:`.compositor`),
+the sky in the world (:mod:`.world`), the haze domes (:mod:`.in_render`); then :mod:`.sync` writes the values the
+built nodes read and drives the sun's from the lamp (:mod:`.sun_drivers`), and :mod:`.sun_bake` records an animated
+sun for the key tiles. Where the action itself changes what the plan was made from (Auto's choice of level,
+:func:`.quality_choice.resolve`; the key tiles a bake writes, :func:`bake_tables`) the next plan is made from the
+first one's facts (:meth:`~atmos_addon.plan.Plan.with_facts`), the scene not read again. :func:`update` runs after
+every settings edit: it rebuilds what the plan no longer matches (cheap when everything does) and writes the
+values. Disabling has every applier remove exactly what it added (``remove(scene)``). All of it is idempotent.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import bpy
 
 from . import facts, group_integrity, migration, quality_choice, scene_reading, settings_io, sun_bake, sync
 from ..node_groups import registry, stamps
+from ..plan import Plan
 from .apply import compositor, in_render, materials, precise_tables, sun_drivers, sun_lamp, world
 
 #: Names of scenes whose ``enabled`` switch this module is setting (its update callback waits).
@@ -123,32 +126,15 @@ def _status(scene, report: Report) -> None:
         item.reason = reason
 
 
-def material_group(scene):
-    """Get or (re)build the group the plan gives the scene's materials: the aerial perspective group (Compositor
-    mode) or the "Atmos In-Render Surface" group (In-Render mode). In the Per Pixel mode the compositor group
-    evaluates the atmosphere and the materials need no shader group: the aerial group is returned only when another
-    enabled scene's Compositor mode uses it (None otherwise), so none is built for nothing. Also builds the Per
-    Pixel compositor group and writes the "built" status line."""
-    groups = scene_reading.groups()
-    aerial = groups.aerial_perspective
-    plan = facts.plan_of(scene)
+def _built_groups(scene, plan: Plan) -> None:
+    """Build (or rebuild in place when stale) the compositor group of the plan's mode (:func:`.compositor.ensure_group`)
+    and write the "built" status line: what the aerial groups hold, with the Per Pixel group's node count."""
     features = facts.aerial_features(plan)
-    if plan.mode == "IN_RENDER":
-        group = groups.in_render.ensure_surface_group(features)
-    elif plan.mode == "COMPOSITOR":
-        group = aerial.ensure_aerial_perspective_group(features)
-    else:
-        group = stamps.local(bpy.data.node_groups, aerial.GROUP_NAME)
-        if group is None and "COMPOSITOR" in plan.surface_modes:
-            group = aerial.ensure_aerial_perspective_group(features)
-    built = aerial.describe_features(features)
+    built = scene_reading.groups().aerial_perspective.describe_features(features)
+    tree = compositor.ensure_group(plan)
     if plan.mode == "PER_PIXEL":
-        per_pixel = compositor.ensure_per_pixel_group(features)
-        built = f"{built.split(':')[0]}, per pixel: {_inline_count(per_pixel)} compositor nodes"
-    elif plan.mode == "COMPOSITOR":
-        scene_reading.groups().composite.ensure_composite_group()   # rebuilt in place when stale
+        built = f"{built.split(':')[0]}, per pixel: {_inline_count(tree)} compositor nodes"
     scene_reading.set_if_changed(scene.atmos, "status_built", built)
-    return group
 
 
 def _inline_count(tree) -> int:
@@ -160,18 +146,14 @@ def _inline_count(tree) -> int:
     return _inline_counts[tree.name][1]
 
 
-def sky_group(scene):
-    """Get or (re)build the "Atmos Sky" world group for the scene's plan."""
-    return scene_reading.groups().sky.ensure_sky_group(facts.sky_features(facts.plan_of(scene)))
-
-
-def _apply_materials(scene, *, only_new: bool) -> Report:
-    plan = facts.plan_of(scene)
+def _apply_materials(scene, plan: Plan, *, only_new: bool) -> Report:
+    """Give the scene's materials the nodes of the plan's mode (:func:`.in_render.install_materials` in In-Render
+    mode, else :func:`.materials.install`); the report of the pass."""
+    _built_groups(scene, plan)
     if plan.mode == "IN_RENDER":
-        result = in_render.inject_scene(scene, material_group(scene), only_new=only_new)
+        result = in_render.install_materials(scene, plan, only_new=only_new)
     else:
-        result = materials.inject_scene(scene, material_group(scene), only_new=only_new,
-                                        evaluations=plan.surface_modes)
+        result = materials.install(scene, plan, only_new=only_new)
     report = Report(
         managed=result.managed,
         skipped=result.skipped,
@@ -188,79 +170,88 @@ def _apply_materials(scene, *, only_new: bool) -> Report:
     return report
 
 
-def mode_mismatch(scene) -> bool:
-    """True when the effect is on in one mode (Compositor or Per Pixel / In-Render) and the scene now asks for the
-    other (Compositor and Per Pixel share the materials' nodes: :func:`.compositor.install` swaps those two)."""
-    return scene.atmos.enabled and in_render.is_installed(scene) != (facts.plan_of(scene).mode == "IN_RENDER")
+def mode_mismatch(scene, plan: Plan) -> bool:
+    """True when the effect is on in one mode (Compositor or Per Pixel / In-Render) and ``plan`` (the scene's) asks
+    for the other (Compositor and Per Pixel share the materials' nodes: :func:`.compositor.install` swaps those
+    two)."""
+    return scene.atmos.enabled and in_render.is_installed(scene) != (plan.mode == "IN_RENDER")
 
 
-def _ensure_groups(scene) -> None:
-    """Rebuild in place every group the plan lists that is stale for it (cheap when current), and stamp them."""
-    plan = facts.plan_of(scene)
-    group = material_group(scene)
-    if plan.compositor is not None and stamps.local(bpy.data.node_groups, materials.SURFACE_GROUP) is not None:
-        materials.ensure_surface_group(group, plan.surface_modes)   # the materials' group, once they have it
+def _ensure_groups(scene, plan: Plan) -> None:
+    """Rebuild in place every group ``plan`` lists that is stale for it (cheap when current), and stamp them."""
+    if plan.mode == "IN_RENDER":
+        in_render.surface_group(plan)
+    else:
+        materials.update_groups(plan)
+    _built_groups(scene, plan)
     if plan.compositor is not None and compositor.installed_evaluation(scene) == plan.compositor:
         compositor.upgrade_passes(scene, plan.compositor)
     if plan.sky:
-        sky_group(scene)
-        world.update_sky_lighting(scene, facts.sky_features(plan))
-    if in_render.is_installed(scene):
-        scene_reading.groups().in_render.ensure_sky_group(facts.aerial_features(plan))
+        world.update(scene, plan)
+    in_render.update_groups(scene, plan)
     group_integrity.stamp_new()
 
 
 def _drop_tables(scene) -> None:
-    """Remove the Precise tables and their parameters of a scene that left the Precise level."""
+    """Remove the Precise tables, their parameters and pending bakes of a scene whose plan is not at the Precise
+    level."""
     parameters = scene_reading.groups().parameters
     if parameters.PRECISE_TILE in scene:
         precise_tables.remove(scene)
         for name in parameters.PRECISE_PARAMETER_NAMES:
             del scene[name]
+    else:
+        precise_tables.drop_pending(scene)
 
 
-def _follow_tables_and_keys(scene) -> None:
+def _follow_tables_and_keys(scene, plan: Plan) -> None:
     """The Precise tables and an animated sun's record follow the values just written: baked again when their inputs
     changed (at once in the background, else shortly after the last change); tables of a level left are removed."""
     key_tiles = scene.get(facts.KEY_TILES)
-    if precise_tables.uses_precise(scene):
+    if plan.tables:
         precise_tables.follow(scene)
     else:
         _drop_tables(scene)
-    sun_bake.follow(scene)
-    follow_key_tiles(scene, key_tiles)
+    sun_bake.follow(scene, plan)
+    follow_key_tiles(scene, key_tiles, plan)
 
 
-def bake_tables(scene, *, force: bool = False, sampled=None) -> int:
-    """Bake the Precise tables (:func:`.precise_tables.bake`; ``sampled``: the frames an enable sampled for its first
-    bake, :class:`.precise_tables.Sampled`) and rebuild the groups when the blend of key tiles came or went with them
-    (a camera or sun that started or stopped moving); the number of tiles baked."""
+def bake_tables(scene, plan: Plan, *, force: bool = False, sampled=None) -> Plan:
+    """Bake the Precise tables ``plan`` lists (:func:`.precise_tables.install`; ``sampled``: the frames an enable
+    sampled for its first bake, :class:`.precise_tables.Sampled`) and rebuild the groups when the blend of key tiles
+    came or went with them (a camera or sun that started or stopped moving); the plan with the key tiles baked."""
     key_tiles = scene.get(facts.KEY_TILES)
-    baked = precise_tables.bake(scene, force=force, sampled=sampled)
-    follow_key_tiles(scene, key_tiles)
-    return baked
+    precise_tables.install(scene, plan, force=force, sampled=sampled)
+    return follow_key_tiles(scene, key_tiles, plan)
 
 
-def follow_key_tiles(scene, key_tiles_before) -> None:
+def follow_key_tiles(scene, key_tiles_before, plan: Plan) -> Plan:
     """Rebuild the groups whose blend of key tiles changed with a bake (``key_tiles_before``: the scene's
     :data:`.facts.KEY_TILES` before it). A group built without the blend over several key tiles would render each
-    frame from its first key alone; one built with it over a single tile renders that tile exactly (weight 0)."""
-    if scene.atmos.enabled and (scene.get(facts.KEY_TILES, 1) > 1) != ((key_tiles_before or 1) > 1):
-        _ensure_groups(scene)
+    frame from its first key alone; one built with it over a single tile renders that tile exactly (weight 0).
+    Returns ``plan`` for the key tiles the scene now holds (what the bake wrote)."""
+    key_tiles = max(int(scene.get(facts.KEY_TILES, 1)), 1)
+    if plan.facts.key_tiles != key_tiles:
+        plan = plan.with_facts(key_tiles=key_tiles)
+    if scene.atmos.enabled and (key_tiles > 1) != ((key_tiles_before or 1) > 1):
+        _ensure_groups(scene, plan)
+    return plan
 
 
-def update(scene) -> None:
+def update(scene, plan: Plan | None = None) -> None:
     """After an edit of ``scene``'s settings or its sun: rebuild what the plan no longer matches, write the values,
-    and let the tables and the sun's record follow. A scene with the effect off only gets its displayed values."""
+    and let the tables and the sun's record follow. A scene with the effect off only gets its displayed values.
+    ``plan``: the scene's, where the caller has just made it (:func:`.facts.plan_of`; made here otherwise)."""
     if not scene.atmos.enabled:
         sync.sync_scene(scene)
         return
-    if mode_mismatch(scene):   # the mode or the engine changed: Compositor <-> In-Render
+    plan = facts.plan_of(scene) if plan is None else plan
+    if mode_mismatch(scene, plan):   # the mode or the engine changed: Compositor <-> In-Render
         enable_effect(scene)
         return
-    _ensure_groups(scene)
+    _ensure_groups(scene, plan)
     sync.sync_scene(scene)
-    _follow_tables_and_keys(scene)
+    _follow_tables_and_keys(scene, plan)
 
 
 def enable_effect(scene) -> Report:
@@ -268,7 +259,8 @@ def enable_effect(scene) -> Report:
     Pixel mode (AOVs in the materials, a group in the compositor) or In-Render mode (Cycles: dome volumes, emission
     in the materials, world compensation). When the effect is on in the other mode (the setting or the render
     engine changed), that mode is removed first."""
-    if mode_mismatch(scene):
+    plan = facts.plan_of(scene)
+    if mode_mismatch(scene, plan):
         disable_effect(scene)
     if len(scene.view_layers) and scene_reading.needs_evaluation(scene):
         # The tables read the sun's and the camera's world matrices, composed from their transforms where nothing
@@ -280,42 +272,36 @@ def enable_effect(scene) -> Report:
     with held(scene):
         migration.pin_defaults(scene.atmos)   # a file saved from now on keeps these whatever later defaults are
     _set_enabled(scene, True)
-    quality_choice.resolve(scene)
-    plan = facts.plan_of(scene)
-    lamp_message = None
-    if plan.sun_lamp:   # before the tables, which follow the lamp: a lamp created after them would bake them again
-        _, lamp_message = sun_lamp.ensure_sun_lamp(scene)
+    plan = quality_choice.resolve(scene, plan)
+    # Before the tables, which follow the lamp: a lamp created after them would bake them again.
+    lamp_message = sun_lamp.install(scene, plan)
     sampled = None
-    if precise_tables.uses_precise(scene):
+    if plan.tables:
         # Before the materials: the groups link the table image as they are built. Pointing a group that 5000
         # materials already use at a new image re-evaluates every one of them (3.4 s of a 5000-material enable).
         sampled = precise_tables.sample(scene)
-        bake_tables(scene, sampled=sampled)
-        plan = facts.plan_of(scene)   # the bake decides the blend of key tiles: the groups below are built for it
-    report = _apply_materials(scene, only_new=True)
+        plan = bake_tables(scene, plan, sampled=sampled)   # the bake decides the blend of key tiles
+    report = _apply_materials(scene, plan, only_new=True)
     if plan.compositor is not None:
-        report.messages.extend(compositor.install(scene, evaluation=plan.compositor,
-                                                  features=facts.aerial_features(plan)))
+        report.messages.extend(compositor.install(scene, plan))
     if lamp_message is not None:
         report.messages.append(lamp_message)
     if plan.sky:
-        report.messages.append(world.install_sky(scene, sky_group(scene), facts.sky_features(plan)))
-    _ensure_groups(scene)
+        report.messages.append(world.install(scene, plan))
+    _ensure_groups(scene, plan)
     sync.sync_scene(scene)
     report.messages.extend(note for note in plan.notes if note not in scene.atmos.status_quality)
     if plan.mode == "IN_RENDER":
-        report.messages.extend(in_render.install(scene, facts.aerial_features(plan),
-                                                 scene_reading.atmosphere_of(scene),
-                                                 scene_reading.metres_per_unit(scene)))
+        report.messages.extend(in_render.install(scene, plan))
     if not sun_bake.is_bake_current(scene):
         sun_bake.bake_sun_animation(scene)
     if scene.get(sun_bake.BAKED_KEY) is not None:
         report.messages.append(f"Animated sun: its light follows the lamp on every frame, "
                                f"{scene.frame_start}-{scene.frame_end} (drivers; no add-on needed to render)")
-    if precise_tables.uses_precise(scene):
+    if plan.tables:
         # A no-op when its inputs are those of the last bake; the frames not sampled again while the sun lamp and
         # the camera are the ones they were, where they were.
-        bake_tables(scene, sampled=sampled)
+        bake_tables(scene, plan, sampled=sampled)
         report.messages.append(precise_tables.describe())
     else:
         _drop_tables(scene)
@@ -334,21 +320,21 @@ def refresh_effect(scene) -> Report:
 def change_quality(scene) -> None:
     """The quality settings' update callback (effect on): resolve Auto, rebuild and re-sync, and bake the Precise
     tables for every frame of an animated camera or sun."""
-    quality_choice.resolve(scene)
-    update(scene)
-    if precise_tables.uses_precise(scene):
-        bake_tables(scene)
+    plan = quality_choice.resolve(scene, facts.plan_of(scene))
+    update(scene, plan)
+    if plan.tables:
+        bake_tables(scene, plan)
 
 
 def apply_sky_state(scene) -> None:
     """The ``sky_enabled`` update callback (effect on): add or remove the sky in the scene's world."""
     plan = facts.plan_of(scene)
     if plan.sky:
-        world.install_sky(scene, sky_group(scene), facts.sky_features(plan))
-        update(scene)
+        world.install(scene, plan)
+        update(scene, plan)
     else:
-        world.uninstall_sky(scene)
-    in_render.refresh_world(scene, facts.aerial_features(plan))
+        world.remove(scene)
+    in_render.refresh_world(scene, plan)
 
 
 def note_counts(scene) -> bool:
@@ -362,9 +348,10 @@ def note_counts(scene) -> bool:
     return changed
 
 
-def pick_up_new_materials(scene) -> None:
-    """Inject materials that appeared since the last pass (the depsgraph handler's cheap path)."""
-    report = _apply_materials(scene, only_new=True)
+def pick_up_new_materials(scene, plan: Plan) -> None:
+    """Inject materials that appeared since the last pass (the depsgraph handler's cheap path; ``plan``: the
+    scene's)."""
+    report = _apply_materials(scene, plan, only_new=True)
     _status(scene, report)
     group_integrity.stamp_new()
 
@@ -390,27 +377,17 @@ def forget(scene_name: str | None = None) -> None:
         _last_counts.pop(scene_name, None)
 
 
-def _materials_used_by_other_enabled_scenes(scene) -> set[int]:
-    keep: set[int] = set()
-    for other in bpy.data.scenes:
-        if other != scene and getattr(other, "atmos", None) is not None and other.atmos.enabled:
-            keep.update(m.as_pointer() for m in materials.scene_materials(other)[0])
-    return keep
-
-
 def disable_effect(scene) -> list[str]:
     """Remove everything :func:`enable_effect` added to ``scene``; the names of the stripped materials."""
     _set_enabled(scene, False)
-    keep = _materials_used_by_other_enabled_scenes(scene)
-    candidates = [m for m in bpy.data.materials if m.as_pointer() not in keep]
-    stripped = materials.remove_all(candidates)
-    compositor.uninstall(scene)
-    in_render.uninstall(scene)
-    world.uninstall_sky(scene)
+    stripped = materials.remove(scene)
+    compositor.remove(scene)
+    in_render.remove(scene)
+    world.remove(scene)
     registry.remove_unused()   # no Atmos orphans left in the file
     sun_bake.clear_baked_keys(scene)
     sun_drivers.remove(scene)   # before the lamp's own values are put back: a driver would override them
-    sun_lamp.restore_lamp(scene)
+    sun_lamp.remove(scene)
     scene_reading.groups().parameters.clear_shader_parameters(scene)
     precise_tables.remove(scene)
     settings = scene.atmos

@@ -5,8 +5,9 @@ Auto (``physics.quality.choose_level``) needs what the bench cases are told apar
 range over the frame range, the altitude span of the geometry, the farthest geometry from the camera, the sun's
 elevation and whether it moves, whether the haze and its absorption are zero, and the planet. :func:`summarize`
 reads them from the scene (lengths in m: scene units times metres per unit, plus the origin altitude);
-:func:`resolve` stores the choice in ``scene.atmos.auto_level`` and a status line. It runs on enable, Refresh and a
-change of the quality setting, not per slider drag (the summary walks every object's bounding box).
+:func:`resolve` stores the choice in ``scene.atmos.auto_level`` and a status line, and returns the action's plan at the
+chosen level. It runs on enable, Refresh and a change of the quality setting, not per slider drag (the summary walks
+every object's bounding box).
 """
 
 from __future__ import annotations
@@ -17,8 +18,8 @@ import numpy as np
 from mathutils import Vector
 
 from ..physics.quality import Level, SceneSummary, choose_level, level_summary, nearest_cases
-from ..plan import NOTE_IN_RENDER_FAST, chosen_level
-from . import facts, scene_reading
+from ..plan import NOTE_IN_RENDER_FAST, Plan
+from . import scene_reading
 
 #: Object types with geometry the camera sees (their bounding boxes count for the summary).
 GEOMETRY_TYPES = frozenset({"MESH", "CURVE", "SURFACE", "META", "FONT", "VOLUME", "POINTCLOUD", "CURVES"})
@@ -83,31 +84,28 @@ def summarize(scene) -> SceneSummary:
                         sun_animated=scene_reading.is_sun_animated(scene), planet_radius_m=atmosphere.planet_radius)
 
 
-def level_of(settings) -> str:
-    """The level the node group is built for: "fast" or "precise" (Auto's last choice for AUTO)."""
-    return chosen_level(settings.quality, settings.auto_level)
-
-
-def resolve(scene) -> str:
-    """Resolve Auto for ``scene`` (summary, choice, status line) and return the level the settings ask for.
+def resolve(scene, plan: Plan) -> Plan:
+    """Resolve Auto for ``scene`` (summary, choice, status line); ``plan``: the scene's plan before. Returns the plan
+    at the level the settings now ask for (Auto's choice made).
 
     In-Render mode builds its ray-segment graph with Fast whatever the level (a reflected ray does not start
     at the camera, around which the Precise table is baked); the status line says so.
     """
     settings = scene.atmos
-    level = _resolve(scene, settings)
-    if NOTE_IN_RENDER_FAST in facts.plan_of(scene).notes:
+    _resolve(scene, settings, plan.mode)
+    resolved = plan.with_facts(auto_level=settings.auto_level)
+    if NOTE_IN_RENDER_FAST in resolved.notes:
         scene_reading.set_if_changed(settings, "status_quality", f"{settings.status_quality}. {NOTE_IN_RENDER_FAST}")
-    return level
+    return resolved
 
 
-def _resolve(scene, settings) -> str:
+def _resolve(scene, settings, mode: str) -> None:
     if settings.quality != "AUTO":
         level = Level(settings.quality.lower())
-        summary = level_summary(level, settings.multiple_scattering, facts.plan_of(scene).mode)
+        summary = level_summary(level, settings.multiple_scattering, mode)
         line = f"{settings.quality.capitalize()}: {summary}"
         scene_reading.set_if_changed(settings, "status_quality", line)
-        return level_of(settings)
+        return
     summary = summarize(scene)
     level, error = choose_level(summary, tolerance=settings.auto_tolerance / 100.0)
     situations = ", ".join(name.replace("_", " ") for name in nearest_cases(summary))
@@ -115,4 +113,3 @@ def _resolve(scene, settings) -> str:
     line = f"Auto chose {level.value.capitalize()}: {100.0 * error:.1f} %{over} ({situations})"
     scene_reading.set_if_changed(settings, "auto_level", level.value)
     scene_reading.set_if_changed(settings, "status_quality", line)
-    return level.value

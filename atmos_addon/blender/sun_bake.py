@@ -16,6 +16,7 @@ import hashlib
 import bpy
 import numpy as np
 
+from ..plan import Plan
 from . import motion_path, scene_reading
 from .apply import precise_tables
 from .apply.sun_lamp import LAMP_PATHS
@@ -103,33 +104,33 @@ def is_bake_current(scene: bpy.types.Scene) -> bool:
     return bool(baked.get("driven")) and baked.get("inputs") == bake_inputs(scene)
 
 
-def follow(scene: bpy.types.Scene) -> None:
+def follow(scene: bpy.types.Scene, plan: Plan) -> None:
     """After a sync or an edit: record the sun's animation again when its inputs changed (:func:`bake_inputs`: an
     edited sun animation, a new frame range, a slider). In the background (scripts, the CLI) at once, with an
     animated Precise scene's key tiles re-baked; in the interface 0.3 s after the last change
     (:class:`.debounce.Debounced`), the record only (re-baking the key tiles takes 0.4-0.8 s a tile, so the UI leaves
     them to Refresh). The sun's light itself needs nothing: its drivers follow every frame. Cheap when current
-    (one digest of a few objects' animation)."""
+    (one digest of a few objects' animation). ``plan``: the scene's (whether it bakes the tables)."""
     if is_bake_current(scene):
         return
     if bpy.app.background:
-        rebake(scene)
+        rebake(scene, plan)
         return
     _later.request(scene)
 
 
-def rebake(scene: bpy.types.Scene, *, precise: bool = True) -> int:
-    """Record the sun's animation again (:func:`bake_sun_animation`) and, with ``precise``, re-bake an animated
-    scene's Precise key tiles (0.4-0.8 s a tile); the number of frames of the animated range."""
+def rebake(scene: bpy.types.Scene, plan: Plan | None = None) -> int:
+    """Record the sun's animation again (:func:`bake_sun_animation`) and, where ``plan`` bakes the tables, re-bake an
+    animated scene's Precise key tiles (0.4-0.8 s a tile); the number of frames of the animated range."""
     frames = bake_sun_animation(scene)
-    if precise and precise_tables.uses_precise(scene) and precise_tables.moves(scene):
+    if plan is not None and plan.tables and precise_tables.moves(scene):
         precise_tables.bake(scene)
     return frames
 
 
 def _rebake_if_stale(scene: bpy.types.Scene) -> None:
     if getattr(scene, "atmos", None) is not None and scene.atmos.enabled and not is_bake_current(scene):
-        rebake(scene, precise=False)   # interactive: Refresh re-bakes the Precise key tiles
+        rebake(scene)   # interactive: the record only (Refresh re-bakes the Precise key tiles)
 
 
 _later = Debounced(_rebake_if_stale)

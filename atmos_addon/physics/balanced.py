@@ -58,7 +58,7 @@ In-scattering is summed piece by piece (each piece's term attenuated by the piec
 the two species' scatterers where they are along the ray instead of spreading them over the whole of it.
 
 The Per Pixel variant
-    Per sample, the graph's size is what Eevee can compile (module ``atmos_addon.nodes.balanced``), so the shader keeps
+    Per sample, the graph's size is what Eevee can compile (module ``atmos_addon.node_groups.balanced``), so the shader keeps
     4 pieces and the sun at each piece's lower end. Evaluated once per pixel in the compositor, nodes are cheap:
     :data:`PER_PIXEL_PIECES` = 8 pieces with the sun at each piece's middle altitude (``sun_at="middle"``).
     Against brute-force single scattering (``tools/bench_accuracy.py``, "balanced, per pixel"): the aircraft's

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import render_utils as ru
-from atmos_addon.blender import orchestrator, scene_reading
+from atmos_addon.blender import facts, orchestrator, scene_reading
 from atmos_addon.blender.apply import precise_tables, sun_lamp
 
 
@@ -42,7 +42,7 @@ def _scene(scene):
     orchestrator.enable_effect(scene)                     # adds its sun lamp
     sun_lamp.set_sun_angles(scene, math.radians(20.0), math.radians(120.0))
     bpy.context.view_layer.update()
-    assert precise_tables.uses_precise(scene)   # the default bakes the tables
+    assert scene.atmos.enabled and facts.plan_of(scene).tables   # the default bakes the tables
     return scene
 
 

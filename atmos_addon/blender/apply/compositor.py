@@ -29,8 +29,9 @@ import bpy
 
 from ... import node_groups
 from ...plan import (AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MODES, AOV_MOMENTS, AOV_TRANSMITTANCE,
-                     AOV_TRANSMITTANCE_CUBED, AOV_TRANSMITTANCE_SQUARED, AOV_VIEW, AOVS, ENVIRONMENT_PASS)
+                     AOV_TRANSMITTANCE_CUBED, AOV_TRANSMITTANCE_SQUARED, AOV_VIEW, AOVS, ENVIRONMENT_PASS, Plan)
 from .. import drivers
+from ..facts import aerial_features
 from ..scene_reading import rendered_view_layers
 from ..tree_edits import TAG
 
@@ -309,6 +310,17 @@ def ensure_per_pixel_group(features):
     return tree
 
 
+def ensure_group(plan: Plan):
+    """The compositor group of ``plan``'s mode, rebuilt in place when stale: the per-pixel group
+    (:func:`ensure_per_pixel_group`) in the Per Pixel mode, the combining group in the Compositor mode; None in
+    In-Render mode."""
+    if plan.mode == "PER_PIXEL":
+        return ensure_per_pixel_group(aerial_features(plan))
+    if plan.mode == "COMPOSITOR":
+        return nodes.composite.ensure_composite_group()
+    return None
+
+
 def _drive_parameters(node, scene) -> None:
     """Drive the per-pixel group node's parameter inputs from ``scene``'s Atmos custom properties; at the Precise
     level also the table's inputs (else their drivers are removed).
@@ -370,15 +382,15 @@ def _remove_drivers(node) -> None:
         animation.drivers.remove(curve)
 
 
-def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str]:
-    """Declare the AOVs and insert the combining group after every Render Layers node of the scene.
-
-    ``evaluation`` "PER_PIXEL" declares the per-pixel AOVs and inserts the per-pixel group for the aerial
-    ``features`` instead (its parameters driven from the scene). Installing one evaluation over the other
-    replaces it.
+def install(scene, plan: Plan) -> list[str]:
+    """Declare the AOVs of ``plan``'s evaluation and insert its group after every Render Layers node of the scene:
+    the combining group (the Compositor mode), or the per-pixel group for the plan's aerial features (the Per Pixel
+    mode; its parameters driven from the scene). Installing one evaluation over the other replaces it; messages.
     """
+    evaluation = plan.compositor
     if evaluation not in EVALUATIONS:
-        raise ValueError(f"evaluation must be one of {EVALUATIONS}; got {evaluation!r}")
+        raise ValueError(f"the plan's mode {plan.mode!r} installs no compositor group (one of {EVALUATIONS} does)")
+    features = aerial_features(plan)
     messages: list[str] = []
     installed = installed_evaluation(scene)
     if installed == evaluation:
@@ -390,7 +402,7 @@ def install(scene, *, evaluation: str = "COMPOSITOR", features=None) -> list[str
         upgrade_passes(scene, evaluation)
         return messages  # already installed: idempotent
     if installed is not None:
-        uninstall(scene)
+        remove(scene)
     state = scene[STATE_KEY].to_dict() if STATE_KEY in scene else {}
     state.setdefault("use_compositing", bool(scene.render.use_compositing))
     state.setdefault("viewer_images", _viewer_images())
@@ -471,7 +483,7 @@ def current_tree(scene):
     return scene.node_tree
 
 
-def uninstall(scene) -> None:
+def remove(scene) -> None:
     """Undo :func:`install`: relink, remove our nodes, AOVs and tree, restore the scene's switches (the groups
     left unused go with :func:`atmos_addon.node_groups.registry.remove_unused`)."""
     state = scene[STATE_KEY].to_dict() if STATE_KEY in scene else {}

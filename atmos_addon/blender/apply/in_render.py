@@ -32,8 +32,9 @@ import bpy
 
 from ... import node_groups
 from ...physics.dome_mesh import dome_mesh
-from ...plan import EEVEE_CLIP_RATIO_LIMIT
-from .. import tree_edits
+from ...plan import EEVEE_CLIP_RATIO_LIMIT, Plan
+from .. import scene_reading, tree_edits
+from ..facts import aerial_features
 from ..tree_edits import TAG
 from . import materials
 
@@ -98,7 +99,7 @@ def _new_node(tree, bl_idname: str, x: float, y: float):
 
 def inject(material, surface_group) -> None:
     """Add the in-render nodes to one node-based, editable material (idempotent; module docstring)."""
-    materials.remove(material)
+    materials.strip(material)
     tree = material.node_tree
     nodes = tree.nodes
     x, y = tree_edits.free_spot(nodes)
@@ -332,7 +333,7 @@ def remove_world(world) -> None:
         world.node_tree.nodes[reactivate].is_active_output = True
 
 
-# -- install / uninstall --------------------------------------------------------------------------------
+# -- install / remove -----------------------------------------------------------------------------------
 
 
 def horizon_optical_depth(atmosphere) -> float:
@@ -344,8 +345,31 @@ def horizon_optical_depth(atmosphere) -> float:
     return float(max(atmosphere.rayleigh_scattering * r_rayleigh + atmosphere.mie_extinction * r_mie))
 
 
-def install(scene, features, atmosphere, metres_per_unit: float) -> list[str]:
-    """Add the domes and the world compensation to ``scene`` (materials: :func:`inject_scene`); messages."""
+def surface_group(plan: Plan):
+    """The "Atmos In-Render Surface" group the materials carry for ``plan`` (rebuilt in place when stale)."""
+    return _groups().ensure_surface_group(aerial_features(plan))
+
+
+def install_materials(scene, plan: Plan, *, only_new: bool = False) -> materials.MaterialReport:
+    """Give every material ``scene`` renders with the in-render nodes of ``plan`` (:func:`inject_scene`);
+    ``only_new``: leave the materials that carry them already."""
+    return inject_scene(scene, surface_group(plan), only_new=only_new)
+
+
+def update_groups(scene, plan: Plan) -> None:
+    """Rebuild in place the in-render groups stale for ``plan`` (cheap when current): the materials' surface group in
+    In-Render mode, the world compensation's sky group where the domes are in ``scene``."""
+    if plan.mode == "IN_RENDER":
+        surface_group(plan)
+    if is_installed(scene):
+        _groups().ensure_sky_group(aerial_features(plan))
+
+
+def install(scene, plan: Plan) -> list[str]:
+    """Add the domes and the world compensation of ``plan`` to ``scene`` (materials: :func:`install_materials`);
+    messages."""
+    atmosphere = scene_reading.atmosphere_of(scene)
+    metres_per_unit = scene_reading.metres_per_unit(scene)
     messages: list[str] = []
     if not is_installed(scene):
         if scene.camera is None:
@@ -368,7 +392,7 @@ def install(scene, features, atmosphere, metres_per_unit: float) -> list[str]:
         messages.append(f"In-Render: the haze is so thick that the horizon's optical depth ({depth:.0f}) passes "
                         f"{limit:.0f}, where the sky's compensation stops: the sky within a few degrees of the "
                         "horizon renders darker than in Compositor mode")
-    warning = install_world(scene, features)
+    warning = install_world(scene, aerial_features(plan))
     if warning:
         messages.append(warning)
     messages.append("In-Render mode (Cycles): haze domes in collection "
@@ -376,13 +400,13 @@ def install(scene, features, atmosphere, metres_per_unit: float) -> list[str]:
     return messages
 
 
-def refresh_world(scene, features) -> None:
-    """Re-install the world compensation (after the sky was added to or removed from the world)."""
+def refresh_world(scene, plan: Plan) -> None:
+    """Re-install the world compensation of ``plan`` (after the sky was added to or removed from the world)."""
     if is_installed(scene):
-        install_world(scene, features)
+        install_world(scene, aerial_features(plan))
 
 
-def uninstall(scene) -> None:
+def remove(scene) -> None:
     """Remove the domes, the world nodes and the in-render groups; restore the camera's clip end."""
     if not is_installed(scene):
         return

@@ -32,8 +32,10 @@ from dataclasses import dataclass, field
 
 import bpy
 
+from ... import node_groups
 from ...node_groups import stamps, surface
-from ...plan import AOVS
+from ...plan import AOVS, Plan
+from ..facts import aerial_features
 from ..scene_reading import rendered_view_layers
 from ..tree_edits import (TAG, active_of, copy_input, cycles_of, cycles_output, free_spot, output_nodes, place_last,
                           remove_tagged, surface_link, take_over_cycles_output)
@@ -433,7 +435,7 @@ def library_aovs(material) -> set[str] | None:
     return names if found else None
 
 
-def remove(material) -> bool:
+def strip(material) -> bool:
     """Delete exactly the Atmos-tagged nodes of ``material`` (and with them their links); True if any.
 
     Settings the tagged nodes changed outside the tree (Cycles emission sampling, which output is active) are
@@ -488,6 +490,48 @@ def remove_all(materials) -> list[str]:
     stripped = []
     with surface.detached(surface_group) if bulk else contextlib.nullcontext():
         for material in materials:
-            if material.library is None and material.node_tree is not None and remove(material):
+            if material.library is None and material.node_tree is not None and strip(material):
                 stripped.append(material.name)
     return stripped
+
+
+# -- the plan's interface (the orchestrator's) ----------------------------------------------------------------
+
+
+def aerial_group(plan: Plan):
+    """The aerial perspective group the shared surface group wraps for ``plan``: built for the Compositor mode. In the
+    Per Pixel mode the compositor group evaluates the atmosphere and the materials need no shader group: the file's
+    aerial group, built only when another enabled scene's Compositor mode uses it (None otherwise), so none is built
+    for nothing."""
+    aerial = node_groups.aerial_perspective
+    features = aerial_features(plan)
+    if plan.mode == "COMPOSITOR":
+        return aerial.ensure_aerial_perspective_group(features)
+    group = stamps.local(bpy.data.node_groups, aerial.GROUP_NAME)
+    if group is None and "COMPOSITOR" in plan.surface_modes:
+        group = aerial.ensure_aerial_perspective_group(features)
+    return group
+
+
+def install(scene, plan: Plan, *, only_new: bool = False) -> MaterialReport:
+    """Give every material ``scene`` renders with the surface group of ``plan`` (the Compositor and Per Pixel modes:
+    its AOVs, :func:`inject_scene`); ``only_new``: leave the materials that carry it already."""
+    return inject_scene(scene, aerial_group(plan), only_new=only_new, evaluations=plan.surface_modes)
+
+
+def update_groups(plan: Plan) -> None:
+    """Rebuild in place the groups the materials carry where they are stale for ``plan`` (cheap when current): the
+    aerial group and, once the materials have it, the shared surface group."""
+    group = aerial_group(plan)
+    if stamps.local(bpy.data.node_groups, SURFACE_GROUP) is not None:
+        ensure_surface_group(group, plan.surface_modes)
+
+
+def remove(scene) -> list[str]:
+    """Strip the Atmos nodes (of either mode) from the file's materials but those another scene with the effect on
+    renders with; the names of the stripped materials."""
+    keep: set[int] = set()
+    for other in bpy.data.scenes:
+        if other != scene and getattr(other, "atmos", None) is not None and other.atmos.enabled:
+            keep.update(material.as_pointer() for material in scene_materials(other)[0])
+    return remove_all([material for material in bpy.data.materials if material.as_pointer() not in keep])

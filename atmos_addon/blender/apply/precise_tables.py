@@ -30,6 +30,7 @@ import numpy as np
 from ...node_groups import stamps
 from ...physics.precise import (DEFAULT_SHAPE, Tile, bake_tile, bank_key, bank_tile, bank_units_around, banked,
                                 key_tiles, shared_max_distance, tables_ready, tile_from_bank)
+from ...plan import Plan
 from .. import facts, group_integrity, motion_path, scene_reading
 from ..debounce import Debounced
 from . import compositor
@@ -389,8 +390,9 @@ def _revalidate_drivers(scene) -> None:
 
 
 def remove(scene) -> None:
-    """Remove the Precise parameters' keys (the parameters are cleared with the others) and, when no scene
-    uses the Precise level any more, the table image."""
+    """Remove the Precise parameters' keys (the parameters are cleared with the others), the scene's pending bakes
+    (:func:`drop_pending`) and, when no scene uses the Precise level any more, the table image."""
+    drop_pending(scene)
     _clear_keys(scene)
     if facts.KEY_TILES in scene:
         del scene[facts.KEY_TILES]
@@ -421,27 +423,26 @@ def describe() -> str:
             f"({image.size[0]}x{image.size[1]}, packed){keys}")
 
 
-def uses_precise(scene) -> bool:
-    """True when ``scene`` has the effect on and its plan bakes the Precise level's tables."""
-    settings = getattr(scene, "atmos", None)
-    return bool(settings is not None and settings.enabled and facts.plan_of(scene).tables)
-
-
 def moves(scene) -> bool:
     """True when the camera or the sun moves over time (key tiles along their path, when altitude or elevation
     changes), a marker's switch to another camera included."""
     return scene_reading.camera_moves(scene) or scene_reading.is_sun_animated(scene)
 
 
+def install(scene, plan: Plan, *, force: bool = False, sampled: Sampled | None = None) -> int:
+    """Bake the tables ``plan`` lists (:func:`bake`; none where it is not at the Precise level); the number of tiles
+    baked."""
+    return bake(scene, force=force, sampled=sampled) if plan.tables else 0
+
+
 def follow(scene) -> None:
-    """After a parameter, sun or camera change: re-bake a still scene's one tile (at once in the background, else
-    0.3 s after the last change, so a slider drag bakes once, on a worker thread: :func:`bake_on_worker`). An
+    """After a parameter, sun or camera change of a scene whose plan bakes the tables (the caller's check): re-bake a
+    still scene's one tile (at once in the background, else 0.3 s after the last change, so a slider drag bakes
+    once, on a worker thread: :func:`bake_on_worker`). An
     animated scene's key tiles are re-baked by Enable, Refresh and quality changes (:func:`bake`), and in the
     background when an edit makes the sun's recorded animation stale (:func:`.sun_bake.follow`); in the UI not on
     every edit (0.4-0.5 s a key tile), except once for a file whose image has an older tile layout
     (:func:`layout_stale`). In the UI a sun move among the banked key tiles shows at once (:func:`show_banked`)."""
-    if not uses_precise(scene):
-        return
     if moves(scene):
         if layout_stale():
             bake(scene)   # a file saved by an Atmos that laid its tiles out otherwise: its key tiles, once
@@ -547,8 +548,11 @@ def write_finished():
 
 
 def _bakes_still(scene) -> bool:
-    """True when the scene's table is Precise's and one tile (nothing moves): what the worker bakes."""
-    return uses_precise(scene) and not moves(scene)
+    """True when the scene has the effect on and its table is one tile (nothing moves): what the worker bakes. That
+    its plan bakes the tables is the callers': an action whose plan leaves the Precise level drops the scene's
+    pending bakes (:func:`remove`, :func:`drop_pending`), so those that run later (the debounce, the worker's
+    timer) are of a scene whose last plan baked them."""
+    return bool(scene.atmos.enabled) and not moves(scene)
 
 
 def _take_finished(jobs: dict[str, tuple[_Request, concurrent.futures.Future]]) -> list[tuple]:
@@ -687,6 +691,16 @@ def finish_pending() -> None:
     farm renders the file's table, so it must be the scene's)."""
     _later.flush()
     wait_for_worker()
+
+
+def drop_pending(scene) -> None:
+    """Drop ``scene``'s queued re-bake and its worker bakes (a running one finishes unwritten): its plan no longer
+    bakes the tables. Cheap (a few dictionary look-ups)."""
+    _later.discard(scene)
+    for jobs in (_jobs, _previews):
+        job = jobs.pop(scene.name, None)
+        if job is not None:
+            job[1].cancel()
 
 
 def cancel_pending() -> None:

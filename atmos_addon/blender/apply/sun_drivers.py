@@ -22,7 +22,7 @@ disabled renders the same)
 
 Ownership: the scene custom property :data:`STATE_KEY` records the lamp, the light data driven and a digest of
 the table, so an unchanged table is not rewritten and :func:`remove` deletes exactly these drivers (the lamp's own
-values are put back by :func:`.sun_lamp.restore_lamp`).
+values are put back by :func:`.sun_lamp.remove`).
 """
 
 from __future__ import annotations

@@ -20,6 +20,7 @@ import bpy
 import numpy as np
 from mathutils import Euler, Matrix
 
+from ...plan import Plan
 from .. import scene_reading
 
 #: Name of the lamp :func:`ensure_sun_lamp` creates when the scene has none.
@@ -49,6 +50,15 @@ def ensure_sun_lamp(scene: bpy.types.Scene) -> tuple[bpy.types.Object, str]:
     state["created"] = lamp.name
     scene[LAMP_STATE_KEY] = state
     return lamp, f"No sun lamp in the scene: created '{lamp.name}' (45 degrees up, toward north)"
+
+
+def install(scene: bpy.types.Scene, plan: Plan) -> str | None:
+    """The sun lamp ``plan`` drives (:func:`ensure_sun_lamp`: created where the scene has none); the report's
+    sentence, None where the plan drives no lamp."""
+    if not plan.sun_lamp:
+        return None
+    _, message = ensure_sun_lamp(scene)
+    return message
 
 
 def angles_from_direction(direction) -> tuple[float, float]:
@@ -95,7 +105,7 @@ def drive_lamp(scene: bpy.types.Scene, lamp: bpy.types.Object, colour, strength:
     only: colour and strength are drivers, :mod:`.sun_drivers`); True if anything was written.
 
     Comparing first keeps the depsgraph handler from feeding itself (every write re-tags the light).
-    The first write remembers the lamp's own values in the scene so :func:`restore_lamp` can put them back.
+    The first write remembers the lamp's own values in the scene so :func:`remove` can put them back.
     """
     light = lamp.data
     state = dict(scene.get(LAMP_STATE_KEY, {}))
@@ -140,7 +150,7 @@ def release_lamp(scene: bpy.types.Scene) -> None:
         del scene[LAMP_STATE_KEY]
 
 
-def restore_lamp(scene: bpy.types.Scene) -> None:
+def remove(scene: bpy.types.Scene) -> None:
     """Undo what enabling did to the sun lamp: its own colour/strength/angle back, or remove a lamp we created (the
     baked keys are :func:`.sun_bake.clear_baked_keys`')."""
     state = scene.get(LAMP_STATE_KEY)

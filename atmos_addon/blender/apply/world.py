@@ -29,6 +29,8 @@ import warnings
 import bpy
 
 from ...node_groups import registry, stamps
+from ...plan import Plan
+from ..facts import sky_features
 from ..scene_reading import groups
 from ..tree_edits import REACTIVATE_KEY, TAG
 
@@ -131,6 +133,24 @@ def _add_lighting_branch(tree: bpy.types.NodeTree, features, background: bpy.typ
         output.is_active_output = True
 
 
+def sky_group(plan: Plan) -> bpy.types.ShaderNodeTree:
+    """The "Atmos Sky" group for ``plan`` (rebuilt in place when stale)."""
+    return groups().sky.ensure_sky_group(sky_features(plan))
+
+
+def install(scene: bpy.types.Scene, plan: Plan) -> str:
+    """Show the sky of ``plan`` in ``scene``'s world (:func:`install_sky` of :func:`sky_group`); a sentence for the
+    report."""
+    return install_sky(scene, sky_group(plan), sky_features(plan))
+
+
+def update(scene: bpy.types.Scene, plan: Plan) -> None:
+    """Rebuild in place what of the installed sky is stale for ``plan`` (cheap when current): the sky group, the
+    lighting group and the rays' routes (:func:`update_sky_lighting`)."""
+    sky_group(plan)
+    update_sky_lighting(scene, sky_features(plan))
+
+
 def install_sky(scene: bpy.types.Scene, group: bpy.types.ShaderNodeTree, features=None) -> str:
     """Show the sky ``group`` in ``scene``'s world (idempotent: an installed sky only gets ``group`` set).
 
@@ -221,7 +241,7 @@ def sharing_scenes(scene: bpy.types.Scene, world: bpy.types.World | None) -> lis
     return [other for other in bpy.data.scenes if other != scene and other.world == world and STATE_KEY not in other]
 
 
-def uninstall_sky(scene: bpy.types.Scene) -> None:
+def remove(scene: bpy.types.Scene) -> None:
     """Remove what :func:`install_sky` added and restore the world as it was (no-op if nothing is installed)."""
     state = scene.get(STATE_KEY)
     if state is None:

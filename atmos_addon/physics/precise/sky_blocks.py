@@ -14,7 +14,7 @@ phase function stays in the shader, so the sun's aureole keeps its exact shape h
 by elevation, crowded at the horizon (the sky's fastest change) without starving the zenith (a zenith cosine's rows
 are 18 deg apart there). At and below the horizon the camera keeps the table's own sky: a 2 m camera sees the
 ground's path shrink from 5 km to 1 km within 0.05 deg below it, which no row spacing follows, and a far surface's
-haze meets the sky behind it there (the seamless horizon; ``atmos_addon.nodes.sky_view``).
+haze meets the sky behind it there (the seamless horizon; ``atmos_addon.node_groups.sky_view``).
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ def lighting_from_tile(tile: Tile, view_dir: ArrayLike, sun_dir: ArrayLike, atm:
     """The sky the scene is lit by at the Precise level, radiance (..., 3) along unit ``view_dir`` (..., 3): the
     sky view (:func:`sky_view`) sampled bilinearly at the row :func:`sky_view_rows` and the azimuth column
     a (N - 1) / pi, plus the lit ground albedo E_sun max(l_z, 0) / pi times its transmittance; what Cycles' Linear
-    image lookup gives the lighting group (``atmos_addon.nodes.sky_lighting``). ``atm``: the tile's."""
+    image lookup gives the lighting group (``atmos_addon.node_groups.sky_lighting``). ``atm``: the tile's."""
     dt = np.dtype(dtype).type
     shape = tile.shape
     v = np.asarray(view_dir, dtype=dt)
