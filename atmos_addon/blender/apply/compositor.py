@@ -317,7 +317,7 @@ def ensure_group(plan: Plan):
     if plan.mode == "PER_PIXEL":
         return ensure_per_pixel_group(aerial_features(plan))
     if plan.mode == "COMPOSITOR":
-        return nodes.composite.ensure_composite_group()
+        return node_groups.composite.ensure_composite_group()
     return None
 
 

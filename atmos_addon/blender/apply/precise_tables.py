@@ -9,7 +9,7 @@ or the camera's altitude, 47 for a sun setting from 60 to -4 deg, however many f
 "Atmos Precise Table" image: tiles stacked upward in path order (at most :data:`TILES_PER_COLUMN`: GPU textures stop
 at 16384 texels). The frame's tile origin, camera altitude, largest distance and blend weight are scene parameters;
 when they change over the range they are keyed per frame with constant interpolation, so the render (a farm's
-included) picks each frame's two key tiles and blends them without Python (``nodes.precise.KeyBlend``; the plan
+included) picks each frame's two key tiles and blends them without Python (``node_groups.precise.KeyBlend``; the plan
 builds the blend where the table holds more than one key tile: :data:`.facts.KEY_TILES`). The image is packed, so
 the file carries it. A bake is skipped while its inputs are unchanged (a key stored on the image).
 """
