@@ -231,8 +231,7 @@ def follow_key_tiles(scene, key_tiles_before, plan: Plan) -> Plan:
     frame from its first key alone; one built with it over a single tile renders that tile exactly (weight 0).
     Returns ``plan`` for the key tiles the scene now holds (what the bake wrote)."""
     key_tiles = max(int(scene.get(facts.KEY_TILES, 1)), 1)
-    if plan.facts.key_tiles != key_tiles:
-        plan = plan.with_facts(key_tiles=key_tiles)
+    plan = plan.with_facts(key_tiles=key_tiles)
     if scene.atmos.enabled and (key_tiles > 1) != ((key_tiles_before or 1) > 1):
         _ensure_groups(scene, plan)
     return plan

@@ -357,10 +357,8 @@ def install_materials(scene, plan: Plan, *, only_new: bool = False) -> materials
 
 
 def update_groups(scene, plan: Plan) -> None:
-    """Rebuild in place the in-render groups stale for ``plan`` (cheap when current): the materials' surface group in
-    In-Render mode, the world compensation's sky group where the domes are in ``scene``."""
-    if plan.mode == "IN_RENDER":
-        surface_group(plan)
+    """Rebuild in place the world compensation's sky group where it is stale for ``plan`` and the domes are in
+    ``scene`` (cheap when current; the materials' group: :func:`surface_group`)."""
     if is_installed(scene):
         _groups().ensure_sky_group(aerial_features(plan))
 

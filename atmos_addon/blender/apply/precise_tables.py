@@ -438,11 +438,11 @@ def install(scene, plan: Plan, *, force: bool = False, sampled: Sampled | None =
 def follow(scene) -> None:
     """After a parameter, sun or camera change of a scene whose plan bakes the tables (the caller's check): re-bake a
     still scene's one tile (at once in the background, else 0.3 s after the last change, so a slider drag bakes
-    once, on a worker thread: :func:`bake_on_worker`). An
-    animated scene's key tiles are re-baked by Enable, Refresh and quality changes (:func:`bake`), and in the
-    background when an edit makes the sun's recorded animation stale (:func:`.sun_bake.follow`); in the UI not on
-    every edit (0.4-0.5 s a key tile), except once for a file whose image has an older tile layout
-    (:func:`layout_stale`). In the UI a sun move among the banked key tiles shows at once (:func:`show_banked`)."""
+    once, on a worker thread: :func:`bake_on_worker`). An animated scene's key tiles are re-baked by Enable, Refresh
+    and quality changes (:func:`bake`), and in the background when an edit makes the sun's recorded animation stale
+    (:func:`.sun_bake.follow`); in the UI not on every edit (0.4-0.5 s a key tile), except once for a file whose
+    image has an older tile layout (:func:`layout_stale`). In the UI a sun move among the banked key tiles shows at
+    once (:func:`show_banked`)."""
     if moves(scene):
         if layout_stale():
             bake(scene)   # a file saved by an Atmos that laid its tiles out otherwise: its key tiles, once
@@ -639,8 +639,9 @@ def show_banked(scene) -> bool:
 
 
 def fill_bank(scene, count: int = BANK_SPAN) -> None:
-    """Have the worker bake the ``count`` keys of the sun's grid nearest a still scene's sun (what the UI does after
-    each of its bakes; scripts that drive the UI's path, tests and the bench call it after a synchronous one)."""
+    """Have the worker bake the ``count`` keys of the sun's grid nearest the sun of a still scene whose plan bakes the
+    tables (what the UI does after each of its bakes; scripts that drive the UI's path, tests and the bench call it
+    after a synchronous one)."""
     if _bakes_still(scene):
         _fill_bank(_request(scene), count)
 
