@@ -331,7 +331,7 @@ class PreciseLookup:
     def __init__(self, g: GraphBuilder, features, s: Socket, view: Socket, to_top: Socket | None = None,
                  whole_row: Socket | None = None):
         self.g, self.features, self.view = g, features, view
-        vz = g.separate(view, label="v")[2]
+        self.vx, self.vy, vz = g.separate(view, label="v")
         x0, y0, h_c = g.separate(g.attribute(parameters.PRECISE_TILE, output="Vector"), label="tile (x0, y0, h_c)")
         d_max, top, _ = g.separate(g.attribute(parameters.PRECISE_SCALE, output="Vector"), label="scale (D, top)")
         width, height, vertical = g.separate(g.attribute(parameters.PRECISE_ATLAS, output="Vector"),
@@ -358,8 +358,7 @@ class PreciseLookup:
     def light(self) -> Socket:
         """Phi_R A_R + Phi_HG A_M at the point: the in-scattered light per unit of 1 - F_ex (module docstring), its
         two azimuth slices blended."""
-        g, view = self.g, self.view
-        vx, vy, _ = g.separate(view, label="v")
+        g, view, vx, vy = self.g, self.view, self.vx, self.vy
         sun = sun_direction(g)
         sx, sy, _ = g.separate(sun, label="l")
         azimuth = g.mul(azimuth_from_sun(g, vx, vy, sx, sy), (AZIMUTHS - 1) / math.pi, label="a")
