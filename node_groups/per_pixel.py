@@ -16,9 +16,8 @@ s = 1000 D / C, for a pixel of one), scaled so that their mean is that s, along 
 evaluates at each
 
     F_ex, L_in = Fast:     eq. 19 on the layered virtual dome (``terms.scattering_terms``)
-                 Precise:  the frame's baked table (``precise.PreciseLookup``), its texels fetched by Map UV nodes
-                           with nearest filtering and blended bilinearly in the graph, as the shader does; the
-                           light per unit of 1 - F_ex read at the far distance for both (:func:`_two_terms`)
+                 Precise:  the frame's baked table (``precise.precise_terms``), its texels fetched by Map UV nodes
+                           with nearest filtering and blended bilinearly in the graph, as the shader does
     T = C (p_n F_ex,n + p_f F_ex,f),  L = C (p_n L_in,n + p_f L_in,f)
 
 with the very functions that build the shader group, a colour one vector socket as there (:class:`.graph.
@@ -42,7 +41,7 @@ from . import parameters, parts, stamps
 from .composite import CORRECTION, TWO_POINT, combine, keep_interface, shown_sky, with_alpha
 from .dome import cos_theta_to_sun, dome_distances, sun_direction
 from .graph import CompositorBuilder
-from .precise import PreciseLookup, distance_to_top, tile_camera
+from .precise import precise_terms
 from .surface import DISTANCE_AOV_UNIT_M, MOMENT_DISTANCE_M
 from .terms import AerialFeatures, scattering_terms
 
@@ -100,44 +99,30 @@ def _ensure_interface(tree: bpy.types.NodeTree) -> None:
     keep_interface(tree, wanted)
 
 
-def _fast_terms(g, features: AerialFeatures, s, view):
-    """(F_ex, L_in) at distance ``s`` (m) along ``view`` on the layered virtual dome (eq. 19)."""
+def _terms(g, features: AerialFeatures, s, view):
+    """(F_ex, L_in) at distance ``s`` (m) along ``view`` at the level of ``features``."""
+    if features.level == "precise":   # the tile's camera altitude is a parameter
+        return precise_terms(g, features, s, view)
     r_rayleigh, r_mie = dome_distances(g, g.separate(view, label="v")[2])
     s_rayleigh = g.min(s, r_rayleigh, label="s_R = min(s, R_R)")
     s_mie = g.min(s, r_mie, label="s_M = min(s, R_M)") if features.mie or features.absorption else None
     return scattering_terms(g, features, s_rayleigh, s_mie, cos_theta_to_sun(g, view, sun_direction(g)))
 
 
-def _two_terms(g, features: AerialFeatures, s_lo, s_hi, view):
-    """(F_ex,lo, F_ex,hi, L_in,lo, L_in,hi) at the pixel's two distances along ``view``. Fast: eq. 19 at each.
-    Precise: the table's transmittance at each, and its light Phi_R A_R + Phi_HG A_M (the in-scattering per unit of
-    1 - F_ex) read once, at the far point, for both: L_in,lo = light(s_hi) (1 - F_ex,lo). Exact where the pixel
-    holds one distance (s_lo = s_hi); where it holds two, the light changes slowly along the ray and multiplies the
-    smaller 1 - F_ex, and the table's texel fetches for it, four of the five per point, are made once."""
-    if features.level != "precise":
-        (f_lo, l_lo), (f_hi, l_hi) = (_fast_terms(g, features, s, view) for s in (s_lo, s_hi))
-        return f_lo, f_hi, l_lo, l_hi
-    to_top = distance_to_top(g, g.separate(view, label="v")[2], *tile_camera(g))
-    lo, hi = (PreciseLookup(g, features, s, view, to_top) for s in (s_lo, s_hi))
-    light = hi.light()
-    return (lo.f_ex, hi.f_ex, g.mul(light, lo.one_minus_t, label="L_in,lo"),
-            g.mul(light, hi.one_minus_t, label="L_in,hi"))
-
-
 def _terms_part(features: AerialFeatures) -> parts.Part:
-    """:func:`_two_terms` for ``features`` as a part (one per feature set), so that the group stays small."""
+    """:func:`_terms` for ``features`` as a part (one per feature set): the group evaluates it at two distances, and
+    each copy inline would double the group's size."""
     sockets = PARAMETER_SOCKETS + (PRECISE_SOCKETS if features.level == "precise" else ())
 
-    def build(g, distance_lo, distance_hi, view):
-        return _two_terms(g, features, distance_lo, distance_hi, view)
+    def build(g, distance, view):
+        return _terms(g, features, distance, view)
 
-    return parts.define(f"Atmos Per Pixel Terms ({features.key})", 2,
-                        (("Distance Lo (m)", parts.FLOAT), ("Distance Hi (m)", parts.FLOAT), ("View", parts.VECTOR)),
-                        (("F_ex Lo", parts.VECTOR), ("F_ex Hi", parts.VECTOR), ("L_in Lo", parts.VECTOR),
-                         ("L_in Hi", parts.VECTOR)), build,
+    return parts.define(f"Atmos Per Pixel Terms ({features.key})", 1,
+                        (("Distance (m)", parts.FLOAT), ("View", parts.VECTOR)),
+                        (("F_ex", parts.VECTOR), ("L_in", parts.VECTOR)), build,
                         parameters=tuple((name, parts.VECTOR if size == 3 else parts.FLOAT)
                                          for name, _, size in sockets),
-                        description="F_ex and L_in at a pixel's two distances along a view direction (Atmos)")
+                        description="F_ex and L_in at a distance along a view direction (Atmos)")
 
 
 #: The terms' part for every feature set the group is built for, by the features' key.
@@ -169,14 +154,14 @@ def build_per_pixel_composite(tree: bpy.types.NodeTree, features: AerialFeatures
     moment_mean = g.add(g.mul(share_lo, distances[0]), g.mul(share_hi, distances[1]), label="mean of the two")
     ratio = g.div(mean, moment_mean, label="s / mean of the two")
     known = g.greater_than(moment_mean, 0.0)
-    s_lo, s_hi = (g.select(known, g.mul(distance, ratio), mean, label=f"s_{end}")
-                  for distance, end in zip(distances, ("lo", "hi")))
-    f_lo, f_hi, l_lo, l_hi = g.call(TERMS_PARTS[features.key], s_lo, s_hi, view)
-    f_ex = g.add(g.scale(f_lo, share_lo), g.scale(f_hi, share_hi), label="F_ex")
-    l_in = g.add(g.scale(l_lo, share_lo), g.scale(l_hi, share_hi), label="L_in")
+    terms = [g.call(TERMS_PARTS[features.key], g.select(known, g.mul(distance, ratio), mean, label=f"s_{end}"), view)
+             for distance, end in zip(distances, ("lo", "hi"))]
+    f_ex = g.add(g.scale(terms[0][0], share_lo), g.scale(terms[1][0], share_hi), label="F_ex")
+    l_in = g.add(g.scale(terms[0][1], share_lo), g.scale(terms[1][1], share_hi), label="L_in")
     sky, surfaces = shown_sky(g, group_in.outputs["Image"], group_in.outputs["Environment"],
                               group_in.outputs[FILM_TRANSPARENT])
-    term = g.call(CORRECTION, surfaces, coverage, moments[0], share_lo, share_hi, q_lo, q_hi, f_lo, f_hi)
+    term = g.call(CORRECTION, surfaces, coverage, moments[0], share_lo, share_hi, q_lo, q_hi, terms[0][0],
+                  terms[1][0])
     out = combine(g, sky=sky, surfaces=surfaces, alpha=group_in.outputs["Alpha"], coverage=coverage,
                   transmittance=g.scale(f_ex, coverage, label="T = C F_ex"),
                   inscattering=g.scale(l_in, coverage, label="L = C L_in"), correction_term=term)
