@@ -22,21 +22,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..physics import rayleigh_coefficients
-from ..physics.spectrum import channel_value_at
-from ..physics.visibility import VISIBILITY_WAVELENGTH_NM, extinction_at_550
+from ..physics.visibility import (KOSCHMIEDER_CONSTANT, extinction_at_550, haze_absorption_ratio, haze_colour_of,
+                                  haze_extinction_for_visibility, haze_for_extinction, relative_air_density)
 
-#: -ln(0.02): the 2 % contrast threshold of Koschmieder's visibility.
-KOSCHMIEDER = 3.912
+#: -ln(0.02) = 3.912: the 2 % contrast threshold of Koschmieder's visibility.
+KOSCHMIEDER = KOSCHMIEDER_CONSTANT
 #: Visibility reported when the air does not attenuate at all, m (a finite stand-in for infinity).
 MAX_VISIBILITY_M = 1.0e9
-#: Absorption / scattering ratio given to haze that has none to copy (the clear default: albedo 0.91).
-DEFAULT_ABSORPTION_RATIO = 0.1
-
-
-def _at_550(settings, values) -> float:
-    """A per-channel value read at 550 nm from the settings' channel wavelengths (the power law through the
-    channels around it, :func:`~atmos_addon.physics.spectrum.channel_value_at`)."""
-    return channel_value_at(VISIBILITY_WAVELENGTH_NM, settings.wavelengths_nm, values)
 
 
 def extinction_550_per_m(settings) -> float:
@@ -62,30 +54,18 @@ def haze_coefficients(settings, visibility: float) -> tuple[tuple[float, ...], t
     return _haze_with_visibility(settings, haze_colour(settings), visibility)
 
 
-def _haze_extinction_550(settings, visibility: float) -> float:
-    """The haze's sea-level extinction at 550 nm (1/km) that gives ``visibility`` metres with the settings' air."""
-    rayleigh_550 = _at_550(settings, settings.rayleigh_scattering_per_km)
-    return max(KOSCHMIEDER / max(visibility, 1e-9) * 1000.0 - rayleigh_550, 0.0)
-
-
 def _absorption_ratio(settings) -> np.ndarray:
-    """Each channel's haze absorption / scattering (a channel without scattering takes the mean ratio)."""
-    scattering = np.asarray(settings.mie_scattering_per_km, dtype=float)
-    absorption = np.asarray(settings.mie_absorption_per_km, dtype=float)
-    if np.all(scattering <= 0.0):
-        return np.full(3, DEFAULT_ABSORPTION_RATIO if np.all(absorption <= 0.0) else 0.0)
-    fallback = float(np.sum(absorption) / max(np.sum(scattering), 1e-30))
-    return np.where(scattering > 0.0, absorption / np.where(scattering > 0.0, scattering, 1.0), fallback)
+    """Each channel's haze absorption / scattering (:func:`~atmos_addon.physics.visibility.haze_absorption_ratio`)."""
+    return haze_absorption_ratio(settings.mie_scattering_per_km, settings.mie_absorption_per_km)
 
 
 def _haze_with_visibility(settings, shape, visibility: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """Mie scattering proportional to ``shape`` per channel and the matching absorption (1/km), scaled so that the
     total extinction at 550 nm gives ``visibility`` metres."""
-    ratio = _absorption_ratio(settings)
-    shape = np.asarray(shape, dtype=float)
-    unit_550 = _at_550(settings, shape) + _at_550(settings, shape * ratio)
-    scale = _haze_extinction_550(settings, visibility) / unit_550 if unit_550 > 0.0 else 0.0
-    return tuple((shape * scale).tolist()), tuple((shape * ratio * scale).tolist())
+    rayleigh_per_m = np.asarray(settings.rayleigh_scattering_per_km, dtype=float) / 1000.0
+    extinction = haze_extinction_for_visibility(visibility, settings.wavelengths_nm, rayleigh_per_m)
+    scattering, absorption = haze_for_extinction(extinction, settings.wavelengths_nm, shape, _absorption_ratio(settings))
+    return tuple((scattering * 1000.0).tolist()), tuple((absorption * 1000.0).tolist())
 
 
 #: Smallest channel of a Haze Colour written to the coefficients (a black channel would make the haze opaque
@@ -95,9 +75,7 @@ MIN_HAZE_COLOUR = 1.0e-3
 
 def haze_colour(settings) -> tuple[float, float, float]:
     """The haze's scattering per channel over its largest channel; white where there is no haze."""
-    scattering = np.asarray(settings.mie_scattering_per_km, dtype=float)
-    peak = float(scattering.max())
-    return (1.0, 1.0, 1.0) if peak <= 0.0 else tuple((scattering / peak).tolist())
+    return tuple(haze_colour_of(settings.mie_scattering_per_km).tolist())
 
 
 def haze_for_colour(settings, colour) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -113,8 +91,8 @@ def standard_rayleigh_per_km(settings) -> np.ndarray:
 
 def air_density(settings) -> float:
     """Rayleigh scattering at 550 nm relative to standard sea-level air (1 = Earth, sea level)."""
-    standard = _at_550(settings, standard_rayleigh_per_km(settings))
-    return _at_550(settings, settings.rayleigh_scattering_per_km) / standard
+    return relative_air_density(settings.wavelengths_nm,
+                                np.asarray(settings.rayleigh_scattering_per_km, dtype=float) / 1000.0)
 
 
 def rayleigh_for_density(settings, density: float) -> tuple[float, ...]:

@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike
 from .atmosphere import Atmosphere
 from .balanced import inscattering_balanced, sun_optical_depths_ground
 from .multiple_scattering_reference import trace_paths
+from .rayleigh import rayleigh_coefficients
 from .precise import bake_tile, sky_from_tile
 from .precise import evaluate as evaluate_precise
 from .spectrum import channel_value_at
@@ -69,6 +70,61 @@ def extinction_550_per_m(atm: Atmosphere) -> float:
 def visibility_m(atm: Atmosphere) -> float:
     """Koschmieder's visibility 3.912 / beta_ex(550 nm) of ``atm`` at sea level, m."""
     return KOSCHMIEDER_CONSTANT / extinction_550_per_m(atm)
+
+
+#: Absorption / scattering ratio given to haze that has none to copy (the clear default: albedo 0.91).
+DEFAULT_HAZE_ABSORPTION_RATIO = 0.1
+
+
+def haze_absorption_ratio(scattering: ArrayLike, absorption: ArrayLike) -> np.ndarray:
+    """Each channel's haze absorption / scattering, (3,): a channel without scattering takes the mean ratio, a haze
+    without any scattering :data:`DEFAULT_HAZE_ABSORPTION_RATIO` (or 0 when it absorbs)."""
+    scattering = np.asarray(scattering, dtype=np.float64)
+    absorption = np.asarray(absorption, dtype=np.float64)
+    if np.all(scattering <= 0.0):
+        return np.full(3, DEFAULT_HAZE_ABSORPTION_RATIO if np.all(absorption <= 0.0) else 0.0)
+    fallback = float(np.sum(absorption) / max(np.sum(scattering), 1e-30))
+    return np.where(scattering > 0.0, absorption / np.where(scattering > 0.0, scattering, 1.0), fallback)
+
+
+def haze_colour_of(scattering: ArrayLike) -> np.ndarray:
+    """The haze's colour: its scattering per channel over its largest channel, (3,); white where there is no haze."""
+    scattering = np.asarray(scattering, dtype=np.float64)
+    peak = float(scattering.max())
+    return np.ones(3) if peak <= 0.0 else scattering / peak
+
+
+def haze_extinction_for_visibility(visibility: float, channel_wavelengths_nm: ArrayLike,
+                                   rayleigh_per_m: ArrayLike) -> float:
+    """The haze's sea-level extinction at 550 nm, 1/m, that gives the visibility ``visibility`` m over the air
+    ``rayleigh_per_m``: 3.912 / V - beta_R(550), not below 0 (a visibility longer than clean air allows gets no
+    haze)."""
+    rayleigh_550 = channel_value_at(VISIBILITY_WAVELENGTH_NM, channel_wavelengths_nm, rayleigh_per_m)
+    return max(KOSCHMIEDER_CONSTANT / max(float(visibility), 1e-9) - rayleigh_550, 0.0)
+
+
+def haze_for_extinction(haze_extinction_550_per_m: float, channel_wavelengths_nm: ArrayLike, shape: ArrayLike,
+                        absorption_ratio: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """The haze's scattering and absorption per channel, 1/m, of colour ``shape`` (scattering proportional to it)
+    with absorption / scattering ``absorption_ratio`` per channel, whose extinction at 550 nm is
+    ``haze_extinction_550_per_m``: the split of one visibility into the haze's coefficients.
+
+    Scattering s shape_c and absorption s shape_c a_c, with s chosen so that (shape + shape a) read at 550 nm
+    (:func:`extinction_at_550`) times s is the extinction asked for; a shape without extinction gives no haze.
+    """
+    shape = np.asarray(shape, dtype=np.float64)
+    ratio = np.asarray(absorption_ratio, dtype=np.float64)
+    unit_550 = extinction_at_550(channel_wavelengths_nm, shape, shape * ratio)
+    scale = float(haze_extinction_550_per_m) / unit_550 if unit_550 > 0.0 else 0.0
+    return shape * scale, shape * ratio * scale
+
+
+def relative_air_density(channel_wavelengths_nm: ArrayLike, rayleigh_per_m: ArrayLike) -> float:
+    """Air density relative to standard sea-level air (288.15 K, 101325 Pa; Bodhaine et al. 1999): the Rayleigh
+    coefficient at 550 nm over standard air's at the same channel wavelengths (1 = Earth at sea level)."""
+    standard = channel_value_at(VISIBILITY_WAVELENGTH_NM, channel_wavelengths_nm,
+                                rayleigh_coefficients(np.asarray(channel_wavelengths_nm, dtype=np.float64)))
+    return channel_value_at(VISIBILITY_WAVELENGTH_NM, channel_wavelengths_nm, rayleigh_per_m) / standard
 
 
 def koschmieder_contrast(distance_m: ArrayLike, visibility: float) -> np.ndarray:
