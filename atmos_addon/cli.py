@@ -6,6 +6,8 @@ Sub-commands (``--help`` on each for its options):
   apply SCENE [--preset P] --output OUT.blend  write a .blend with the effect set up, for farms without Atmos
   contact-sheet SCENE --presets a,b --elevations 60,20 --output sheet.png
   presets list | show NAME | validate FILE
+  match PLATE --fov DEG --sky-mask MASK [--region MASK:DISTANCE_M] --output look.toml
+                                            fit the atmosphere to a photograph and write it as a preset
   demo [--output DIR]                       render the sample scenes with every preset (the README's first command)
 SCENE is a .blend file, or the name of a sample scene (valley, mars) when run from a source checkout. Without
 --preset, render and apply use the file's own Atmos settings (a shot set up in the panel); a file without an Atmos
@@ -320,6 +322,108 @@ def cmd_presets(args: argparse.Namespace) -> int:
     return 0
 
 
+def _region(text: str) -> tuple[str, float, str]:
+    """MASK:DISTANCE_M[:SURFACE] (a mask image, the surface's distance in metres, the name of its kind of surface)."""
+    parts = text.rsplit(":", 2)
+    if len(parts) == 3 and not _is_number(parts[2]) and _is_number(parts[1]):
+        mask, distance, surface = parts
+    else:
+        mask, _, distance = text.rpartition(":")
+        surface = "ground"
+    if not mask or not _is_number(distance):
+        raise argparse.ArgumentTypeError(f"a region must look like far_hills.png:12000 (mask:distance in metres), "
+                                         f"got '{text}'")
+    return mask, float(distance), surface
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"'{text}' is not a finite number")
+    return value
+
+
+class _MatchProgress:
+    """One progress line on stderr per step of at least 10 % (or a new stage), as the fit goes."""
+
+    def __init__(self) -> None:
+        self._last = -1.0
+
+    def __call__(self, fraction: float, text: str) -> None:
+        if fraction >= 1.0 or fraction - self._last >= 0.1:
+            self._last = fraction
+            _log(f"atmos: match {100.0 * fraction:3.0f} % {text}")
+
+
+def cmd_match(args: argparse.Namespace) -> int:
+    from .blender.ui import match_plate
+    from .blender.ui.preset_ops import user_directory
+    from .physics import match
+    from .presets import schema
+
+    output = Path(args.output).resolve()
+    if output.suffix.lower() != ".toml":
+        raise CliError(f"--output must be a .toml preset file, got '{output.name}'")
+    if args.comparison and Path(args.comparison).suffix.lower() != ".png":
+        raise CliError(f"--comparison must be a .png file, got '{Path(args.comparison).name}'")
+    name = args.save_preset or args.name or (output.stem if schema.is_valid_name(output.stem) else "matched plate")
+    try:
+        schema.check_name(name)
+        if args.save_preset:
+            if preset_library.is_builtin(name):
+                raise preset_library.PresetError(None, name, "is a built-in preset's name; pick another")
+            target = user_directory() / f"{name}.toml"
+            if target.exists() and not args.overwrite:
+                raise preset_library.PresetError(target, name, "a user preset of that name exists; add --overwrite "
+                                                               "or pick another name")
+        surfaces = [match_plate.SurfaceInput(f"region {index + 1} ({Path(mask).name})", mask, distance,
+                                             surface=surface)
+                    for index, (mask, distance, surface) in enumerate(args.region or [])]
+        if args.depth:
+            surfaces.append(match_plate.SurfaceInput("depth pass", args.depth_mask, depth_path=args.depth,
+                                                     depth_planar=not args.depth_range, surface="depth pass"))
+        elif args.depth_mask:
+            raise CliError("--depth-mask needs --depth")
+        inputs = match_plate.MatchInputs(args.plate, args.fov, args.sky_mask, surfaces, args.colorspace,
+                                         pitch_deg=args.pitch, horizon_fraction=args.horizon,
+                                         heading_deg=args.heading, altitude_m=args.camera_altitude)
+        starts = match_plate.start_atmospheres(args.start)
+        knowns = match.Knowns(args.sun_elevation, args.sun_azimuth, args.exposure)
+        plate = match_plate.build_plate(inputs)
+        _log(f"atmos: matching {Path(args.plate).name} ({plate.camera.width}x{plate.camera.height} px, "
+             f"{len(plate.regions)} regions) from {', '.join(starts)}")
+        start_name, result = match_plate.run(plate, starts, knowns, _MatchProgress())
+        preset = match_plate.preset_from_fit(result, name, args.plate, start_name)
+        preset_library.save(preset, output)
+        if args.save_preset:
+            saved = preset_library.save_user_preset(preset, user_directory(), overwrite=args.overwrite)
+            _log(f"atmos: saved user preset '{name}' to {saved}")
+    except match.MatchError as error:
+        raise CliError(f"cannot match the plate: {error}") from error
+    except preset_library.PresetError as error:
+        raise CliError(str(error)) from error
+    print(f"start: {start_name} ({result.seconds:.1f} s)")
+    for line in match.describe(result):
+        print(line)
+    if args.comparison:
+        path = Path(args.comparison).resolve()
+        match_plate.store_comparison(match_plate.comparison_pixels(plate, result), path, keep=False)
+        _log(f"atmos: wrote the comparison (plate | Atmos | difference x 4) to {path}")
+    _log(f"atmos: wrote {output}")
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """Render the valley with every built-in preset and the Mars scene; write a contact sheet and an EXR."""
     from .blender.ui import contact_sheet
@@ -416,6 +520,39 @@ def build_parser() -> argparse.ArgumentParser:
     presets.add_argument("action", choices=("list", "show", "validate"))
     presets.add_argument("target", nargs="?", help="preset name (show) or file (validate)")
     presets.set_defaults(func=cmd_presets)
+
+    fit = sub.add_parser("match", help="fit the atmosphere to a photograph (a plate) and write it as a preset")
+    fit.add_argument("plate", help="the photograph: EXR (scene-linear), PNG or JPEG")
+    fit.add_argument("--output", required=True, help="the preset .toml to write")
+    fit.add_argument("--fov", type=_degrees(1.0, 170.0), required=True, help="horizontal field of view, degrees")
+    view = fit.add_mutually_exclusive_group()
+    view.add_argument("--horizon", type=_finite, help="the horizon's row as a fraction of the plate's height from "
+                                                      "the top (0.5: a level camera)")
+    view.add_argument("--pitch", type=_degrees(-89.0, 89.0), help="camera pitch above the horizon, degrees (default 0)")
+    fit.add_argument("--heading", type=_degrees(-360.0, 360.0), default=0.0,
+                     help="the azimuth the camera looks toward, degrees clockwise from +Y (default 0): the fitted sun "
+                          "azimuth is in the same frame")
+    fit.add_argument("--camera-altitude", type=_finite, default=0.0, help="camera height above the ground, m")
+    fit.add_argument("--sky-mask", required=True, help="image, white where the plate shows sky (leave the sun out)")
+    fit.add_argument("--region", type=_region, action="append", metavar="MASK:DISTANCE_M",
+                     help="a surface at a known distance: mask image and metres (repeat for each; regions share one "
+                          "unknown surface colour unless given MASK:DISTANCE_M:NAME)")
+    fit.add_argument("--depth", help="EXR depth pass (first channel, metres; Blender's Z pass): its surfaces are fitted")
+    fit.add_argument("--depth-mask", help="image, white where the depth pass's surfaces count (default: all but sky)")
+    fit.add_argument("--depth-range", action="store_true", help="the depth pass holds distances along each ray, not "
+                                                                "depths along the camera axis")
+    fit.add_argument("--sun-elevation", type=_degrees(-90.0, 90.0), help="known sun elevation, degrees (else fitted)")
+    fit.add_argument("--sun-azimuth", type=_degrees(-360.0, 360.0), help="known sun azimuth, degrees (else fitted)")
+    fit.add_argument("--exposure", type=_finite, help="known exposure in stops: plate = 2^EV x radiance (else fitted)")
+    fit.add_argument("--colorspace", choices=("auto", "srgb", "linear"), default="auto",
+                     help="the plate's encoding: auto (EXR linear, PNG/JPEG sRGB; default), srgb or linear")
+    fit.add_argument("--start", default="auto", help="start preset: auto (every built-in, the best kept; default), a "
+                                                     "preset name or a .toml file")
+    fit.add_argument("--name", help="the preset's name (default: the output file's name)")
+    fit.add_argument("--save-preset", metavar="NAME", help="also save the preset to your library under NAME")
+    fit.add_argument("--overwrite", action="store_true", help="replace a user preset of the same name")
+    fit.add_argument("--comparison", help="write plate | Atmos | difference side by side to this .png")
+    fit.set_defaults(func=cmd_match)
 
     demo = sub.add_parser("demo", help="render the sample scenes with every preset into a contact sheet")
     demo.add_argument("--output", default="out", help="output folder (default: out)")

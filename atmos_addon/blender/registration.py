@@ -9,11 +9,11 @@ import bpy
 
 from . import handlers, properties, sun_bake
 from .apply import precise_tables
-from .ui import cli_command, contact_sheet, operators, preset_ops
+from .ui import cli_command, contact_sheet, match_plate, operators, preset_ops
 from .ui import panel as ui_panel
 
 CLASSES = (*properties.CLASSES, *operators.CLASSES, *preset_ops.CLASSES, *contact_sheet.CLASSES,
-           *ui_panel.CLASSES)
+           *match_plate.CLASSES, *ui_panel.CLASSES)
 
 
 def register() -> None:

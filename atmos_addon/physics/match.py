@@ -73,7 +73,7 @@ CLIP_MARGIN = 0.98
 MIN_SUN_ELEVATION_DEG = 0.2
 #: Levenberg-Marquardt limits: iterations, the relative cost decrease that ends it, the largest damping.
 MAX_ITERATIONS = 80
-COST_TOLERANCE = 1e-10
+COST_TOLERANCE = 1e-6
 MAX_DAMPING = 1e10
 #: Forward-difference step in the transformed parameters.
 JACOBIAN_STEP = 1e-6
@@ -82,7 +82,7 @@ AT_BOUND = 1e-4
 #: A fit whose worst region's mean colour is further than this from the plate's says so (:attr:`Fit.misfit`).
 MISFIT_COLOUR_ERROR = 0.02
 #: A held parameter takes the start's value when the refit with it costs at most this times the free fit's.
-HOLD_COST_RATIO = 1.5
+HOLD_COST_RATIO = 1.1
 #: Correlation above which an undetermined parameter is reported as traded against another.
 TRADE_CORRELATION = 0.9
 
@@ -94,7 +94,7 @@ GRID_VISIBILITIES_M = (3_000.0, 12_000.0, 40_000.0, 150_000.0)
 #: Starting points the search runs from (the grid's best with their suns apart), and the iterations each gets
 #: before the best goes on alone.
 STARTS = 5
-START_ITERATIONS = 12
+START_ITERATIONS = 8
 
 
 class MatchError(ValueError):
@@ -323,6 +323,8 @@ PARAMETERS = (
     Parameter("haze_height", "haze scale height", math.log(200.0), math.log(20_000.0), 0.25, "relative"),
 )
 _INDEX = {p.name: i for i, p in enumerate(PARAMETERS)}
+#: Parameters without a start value to fall back on when the plate cannot tell them (the start preset has none).
+_NO_PRIOR = frozenset(("sun_elevation", "sun_azimuth", "exposure"))
 _LOWER = np.array([p.lower for p in PARAMETERS])
 _UPPER = np.array([p.upper for p in PARAMETERS])
 _BOUNDED = np.isfinite(_LOWER) & np.isfinite(_UPPER)
@@ -658,7 +660,9 @@ class RegionResidual:
 @dataclass(frozen=True)
 class Fit:
     """A fit's outcome: the look, each surface's radiance L0 (plate units over 2^EV), the residual per region, the
-    standard error of each parameter (fit coordinates), the parameters held and why, and its cost."""
+    standard error of each parameter (its reported unit), the parameters the plate cannot tell and why (``held``:
+    an atmosphere parameter there is held, at the start's value where the rest can make up for it; the sun and the
+    exposure, which have no start value, stay in ``fitted`` and are only reported as uncertain), and its cost."""
 
     look: Look
     surface_radiance: dict[str, np.ndarray]
@@ -709,7 +713,7 @@ class Fit:
             if name == "haze_red" and "haze_blue" in self.held and name not in self.held:
                 text += f" (blue held: {self.held['haze_blue']})"
             if name in self.held:
-                text += f" (held: {self.held[name]})"
+                text += f" ({'uncertain' if name in self.fitted else 'held'}: {self.held[name]})"
             elif name in errors and name in self.fitted:
                 error = errors[name]
                 parameter = PARAMETERS[_INDEX[name]]
@@ -781,12 +785,14 @@ def fit(plate: Plate, start: Atmosphere, knowns: Knowns = Knowns(), *, samples_p
         y = _solve(problem, y, free, lambda i, r=rounds: report(min(0.2 + 0.15 * (r - 1) + 0.003 * i, 0.9),
                                                                 f"fitting (round {r}, iteration {i})"))
         errors, correlation, bound = _uncertainty(problem, y, free)
-        ratios = {name: errors[name] / PARAMETERS[_INDEX[name]].tolerance for name in errors if name not in bound}
+        ratios = {name: errors[name] / PARAMETERS[_INDEX[name]].tolerance for name in errors
+                  if name not in bound and name not in held}
+        bound = [name for name in bound if name not in held]
         worst = bound[0] if bound else (max(ratios, key=ratios.get) if ratios else None)
         if worst is None or (not bound and ratios[worst] <= 1.0) or rounds > len(PARAMETERS):
             break
-        index = _INDEX[worst]
         partner = _partner(worst, correlation)
+        index = _INDEX[worst]
         if worst in bound:
             reason = "it ran to the bound of its range"
         elif partner is not None:
@@ -794,10 +800,11 @@ def fit(plate: Plate, start: Atmosphere, knowns: Knowns = Knowns(), *, samples_p
                       f"{partner[1]:+.2f})")
         else:
             reason = f"the plate does not constrain it (standard error {errors[worst]:.2g})"
-        free[index] = False
-        if worst in ("sun_elevation", "sun_azimuth", "exposure"):
-            held[worst] = f"{reason}; kept at the fitted value"
+        if worst in _NO_PRIOR:
+            # No value to fall back on: it stays free (what else is held may move it) and is reported as uncertain.
+            held[worst] = reason
             continue
+        free[index] = False
         # The start's value where the rest can make up for it (the refit's cost within HOLD_COST_RATIO of the
         # free fit's); else the fitted value, which the rest of the fit was found with.
         cost = float(np.sum(problem.residual(y)[0] ** 2))
@@ -820,21 +827,29 @@ def fit(plate: Plate, start: Atmosphere, knowns: Knowns = Knowns(), *, samples_p
                seconds=time.perf_counter() - began)
 
 
-def fit_best_start(plate: Plate, starts: dict[str, Atmosphere], knowns: Knowns = Knowns(), *,
-                   samples_per_region: int = SAMPLES_PER_REGION, progress: ProgressCallback | None = None,
-                   seed: int = 0) -> tuple[str, Fit]:
-    """:func:`fit` from each of ``starts`` (name: atmosphere, e.g. the built-in presets); the name and the fit of the
-    one with the lowest cost (the same pixels and weights for all, so their costs compare)."""
+def fits_from_starts(plate: Plate, starts: dict[str, Atmosphere], knowns: Knowns = Knowns(), *,
+                     samples_per_region: int = SAMPLES_PER_REGION, progress: ProgressCallback | None = None,
+                     seed: int = 0) -> dict[str, Fit]:
+    """:func:`fit` from each of ``starts`` (name: atmosphere, e.g. the built-in presets), by name."""
     if not starts:
         raise MatchError("no start atmosphere to fit from")
     report = progress or (lambda fraction, text: None)
-    results = []
+    results = {}
     for number, (name, atm) in enumerate(starts.items()):
         def step(fraction: float, text: str, number=number, name=name) -> None:
             report((number + fraction) / len(starts), f"start {name}: {text}")
-        results.append((name, fit(plate, atm, knowns, samples_per_region=samples_per_region, progress=step,
-                                  seed=seed)))
-    return min(results, key=lambda pair: pair[1].cost)
+        results[name] = fit(plate, atm, knowns, samples_per_region=samples_per_region, progress=step, seed=seed)
+    return results
+
+
+def fit_best_start(plate: Plate, starts: dict[str, Atmosphere], knowns: Knowns = Knowns(), *,
+                   samples_per_region: int = SAMPLES_PER_REGION, progress: ProgressCallback | None = None,
+                   seed: int = 0) -> tuple[str, Fit]:
+    """The name and the fit of the start with the lowest cost (:func:`fits_from_starts`: the same pixels and weights
+    for every start, so their costs compare)."""
+    results = fits_from_starts(plate, starts, knowns, samples_per_region=samples_per_region, progress=progress,
+                               seed=seed)
+    return min(results.items(), key=lambda pair: pair[1].cost)
 
 
 def _grid_starts(problem: _Problem, y: np.ndarray, knowns: Knowns, heading_deg: float) -> list[np.ndarray]:
@@ -1047,7 +1062,7 @@ ROUND_TRIP_VISIBILITY_M = (10_000.0, 70_000.0)
 ROUND_TRIP_ANGSTROM = (0.0, 1.3)
 ROUND_TRIP_G = (0.6, 0.8)
 ROUND_TRIP_SUN_ELEVATION_DEG = (2.0, 60.0)
-ROUND_TRIP_AIR_DENSITY = (0.85, 1.15)
+ROUND_TRIP_AIR_DENSITY = (1.0, 1.0)
 ROUND_TRIP_DISTANCES_M = (2_000.0, 20_000.0)
 
 
@@ -1096,7 +1111,7 @@ def round_trip_case(seed: int, start: Atmosphere, *, width: int = 192, height: i
 
 __all__ = [
     "Fit", "Knowns", "Look", "MatchError", "PARAMETERS", "Parameter", "Plate", "PlateCamera", "Region",
-    "RegionResidual", "atmosphere_terms", "comparison_image", "describe", "fit", "fit_best_start",
+    "RegionResidual", "atmosphere_terms", "comparison_image", "describe", "fit", "fit_best_start", "fits_from_starts",
     "levenberg_marquardt", "round_trip_case",
     "linear_to_srgb", "pitch_from_horizon", "render_pixels", "render_plate", "srgb_to_linear", "sun_direction",
     "synthetic_plate",

@@ -356,7 +356,7 @@ class ATMOS_PT_atmosphere_quality(_SubPanel, bpy.types.Panel):
 
 
 class ATMOS_PT_atmosphere_look(_SubPanel, bpy.types.Panel):
-    """Look development: compare presets and sun elevations side by side."""
+    """Look development: compare presets and sun elevations side by side, and match a photograph of the location."""
 
     bl_label = "Look Development"
     bl_idname = "ATMOS_PT_atmosphere_look"
@@ -364,6 +364,7 @@ class ATMOS_PT_atmosphere_look(_SubPanel, bpy.types.Panel):
 
     def draw(self, context):
         self.layout.operator("atmos.contact_sheet", icon="IMGDISPLAY")   # import / export: the preset menu
+        self.layout.operator("atmos.match_plate", icon="IMAGE_REFERENCE")
 
 
 CLASSES = (
