@@ -1,0 +1,67 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Plates for the Match Plate tests: a look rendered by the fit's own model (physics.match), saved with Blender's image
+writing as an sRGB PNG or a scene-linear EXR, with its masks (white on black PNGs) and a depth pass."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+from atmos_addon import presets
+from atmos_addon.physics import match
+
+WIDTH, HEIGHT = 128, 72
+FOV_DEG = 55.0
+#: The look of the test plates: the sunset preset's haze at 70 % of its amount, the sun 12 deg up at azimuth 60.
+TRUTH = match.Look(presets.load("sunset").atmosphere.replace(
+    mie_scattering=np.asarray(presets.load("sunset").atmosphere.mie_scattering) * 0.7), 12.0, 60.0, 1.0)
+DISTANCES_M = {"far": 15_000.0, "near": 2_000.0}
+GROUND = (0.05, 0.04, 0.03)
+
+
+def bands() -> dict[str, np.ndarray]:
+    """The masks of a level camera with the horizon in the middle: sky above, a far and a near band of ground."""
+    rows = np.arange(HEIGHT)[:, None] * np.ones((1, WIDTH))
+    horizon = HEIGHT / 2
+    return {"sky": rows < horizon - 5, "far": (rows >= horizon + 1) & (rows < horizon + 7), "near": rows >= horizon + 13}
+
+
+def camera() -> match.PlateCamera:
+    return match.PlateCamera(WIDTH, HEIGHT, FOV_DEG)
+
+
+def _save(path: Path, rgb: np.ndarray, exr: bool) -> Path:
+    image = bpy.data.images.new(path.stem, WIDTH, HEIGHT, alpha=True, float_buffer=exr)
+    try:
+        pixels = np.concatenate([rgb, np.ones((HEIGHT, WIDTH, 1))], axis=2)[::-1]
+        image.pixels.foreach_set(np.ascontiguousarray(pixels, dtype=np.float32).ravel())
+        image.filepath_raw = str(path)
+        image.file_format = "OPEN_EXR" if exr else "PNG"
+        if exr and hasattr(image, "use_half_precision"):
+            image.use_half_precision = False
+        image.save()
+    finally:
+        bpy.data.images.remove(image)
+    return path
+
+
+def write_plate(folder: Path, exr: bool = False, look: match.Look = TRUTH) -> dict[str, Path]:
+    """The plate (PNG: sRGB 8 bits; EXR: linear float) and its masks and depth pass in ``folder``; returns the paths
+    by name (plate, sky, far, near, depth)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    masks = bands()
+    regions = [("sky", masks["sky"], None)] + [(name, masks[name], DISTANCES_M[name]) for name in ("far", "near")]
+    plate = match.synthetic_plate(look, camera(), regions, GROUND, noise=0.005, srgb=not exr, seed=5)
+    paths = {"plate": _save(folder / ("plate.exr" if exr else "plate.png"),
+                            plate.pixels if exr else match.linear_to_srgb(plate.pixels), exr)}
+    for name, mask in masks.items():
+        paths[name] = _save(folder / f"{name}.png", np.repeat(mask[..., None].astype(float), 3, axis=2), False)
+    depth = np.full((HEIGHT, WIDTH), 1.0e10)
+    rows, cols = np.indices((HEIGHT, WIDTH))
+    for name in ("far", "near"):
+        planar = DISTANCES_M[name] / camera().range_per_depth(rows, cols)  # Blender's Z pass: along the camera axis
+        depth = np.where(masks[name], planar, depth)
+    paths["depth"] = _save(folder / "depth.exr", np.repeat(depth[..., None], 3, axis=2), True)
+    return paths
