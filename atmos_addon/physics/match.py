@@ -13,22 +13,24 @@ and a far ridge) and theta the atmosphere and the sun:
 
     visibility (the haze's extinction at 550 nm beyond the air's, Koschmieder: V = 3.912 / beta_ex(550)),
     haze colour (its scattering R / G and B / G; the Angstrom exponent is read from it), forward scattering g,
-    air density (Rayleigh at 550 nm over standard air's), ozone column, sun elevation and azimuth, exposure.
+    air density (Rayleigh at 550 nm over standard air's), ozone column, the haze's scale height, sun elevation and
+    azimuth, exposure.
 
 The fit is a least-squares problem in these parameters over a few hundred pixels per marked region, each region
 weighted alike (its pixels' residuals relative to the region's mean brightness), solved by Levenberg-Marquardt
 (Marquardt 1963: damped Gauss-Newton with the damping scaled by diag(J^T J)) with forward-difference Jacobians.
 Bounds enter through a logistic transform of each bounded parameter. L0 is linear in the residual and solved in
-closed form at every evaluation (variable projection, Golub & Pereyra 1973), so it never slows the search. When the
-sun or the haze's amount is unknown the search starts from the best point of a coarse grid, where the exposure and
-L0 are solved linearly too.
+closed form at every evaluation (variable projection, Golub & Pereyra 1973), so it never slows the search. The
+search runs a few iterations from each of the best points of a coarse grid over the sun and the haze's amount (the
+exposure and L0 solved linearly there), whose suns lie apart, and goes on from the best.
 
-What the plate cannot tell: the covariance sigma^2 (J^T J)^-1 at the solution, with sigma the pixels' relative
-residual (at least :data:`MODEL_NOISE_FLOOR`: a photograph never matches a single-scattering model better), gives
-each parameter's standard error. A parameter whose error passes its tolerance (:data:`PARAMETERS`) is held (the
-start preset's value for the atmosphere's, the fitted value for the sun and the exposure) and reported with the
-parameter it trades with (their correlation), and the rest is fitted again: an answer is never more precise than the
-plate allows.
+What the plate cannot tell: the covariance sigma^2 (J^T J)^-1 / (3 :data:`EFFECTIVE_SAMPLES`) at the solution, with
+sigma the pixels' relative residual (at least :data:`MODEL_NOISE_FLOOR`: a photograph never matches a
+single-scattering model better), gives each parameter's standard error. A parameter whose error passes its tolerance (:data:`PARAMETERS`), or that runs to
+a bound, is reported with the parameter it trades with (their correlation): an atmosphere parameter is then held (at
+the start preset's value where the rest can make up for it) and the rest fitted again; the sun and the exposure, with
+no start value to fall back on, stay free and are reported as uncertain. An answer is never reported as more precise
+than the plate allows, and a look that does not reproduce a region says so (:attr:`Fit.misfit`).
 
 Lengths m, angles deg unless named _rad, radiance in the plate's linear units over 2^EV. Numpy only.
 """
@@ -729,7 +731,7 @@ ProgressCallback = Callable[[float, str], None]
 def fit(plate: Plate, start: Atmosphere, knowns: Knowns = Knowns(), *, samples_per_region: int = SAMPLES_PER_REGION,
         fit_ozone: bool | None = None, progress: ProgressCallback | None = None, seed: int = 0) -> Fit:
     """Fit the atmosphere, the sun (where not known) and the exposure (where not known) to ``plate``, starting from
-    ``start`` (a preset's atmosphere: what is not fitted, the scale heights, the planet, the sun above the
+    ``start`` (a preset's atmosphere: what is not fitted, the air's scale height, the planet, the sun above the
     atmosphere and the haze's absorption per unit scattering, is kept from it).
 
     ``fit_ozone`` None fits the ozone column only when the sun is within 10 deg of the horizon (the twilight colour

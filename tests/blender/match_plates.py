@@ -35,6 +35,8 @@ def camera() -> match.PlateCamera:
 def _save(path: Path, rgb: np.ndarray, exr: bool) -> Path:
     image = bpy.data.images.new(path.stem, WIDTH, HEIGHT, alpha=True, float_buffer=exr)
     try:
+        if exr:
+            image.colorspace_settings.name = "Non-Color"  # saved as given: no view transform on the way out
         pixels = np.concatenate([rgb, np.ones((HEIGHT, WIDTH, 1))], axis=2)[::-1]
         image.pixels.foreach_set(np.ascontiguousarray(pixels, dtype=np.float32).ravel())
         image.filepath_raw = str(path)

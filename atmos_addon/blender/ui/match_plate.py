@@ -45,9 +45,10 @@ class PlateImage:
     is_float: bool
 
 
-def read_image(path: str | Path, colorspace: str = "auto") -> PlateImage:
+def read_image(path: str | Path, colorspace: str = "auto", data: bool = False) -> PlateImage:
     """Read ``path`` with Blender's image loading; sRGB-encoded values are decoded (IEC 61966-2-1) when ``colorspace``
-    says so (or, for ``auto``, when the file holds 8 or 16-bit integers). Raises :class:`~.match.MatchError`."""
+    says so (or, for ``auto``, when the file holds 8 or 16-bit integers). A float file's values come in Blender's
+    scene-linear space, or as stored with ``data`` (a depth pass). Raises :class:`~.match.MatchError`."""
     path = Path(path)
     if colorspace not in COLORSPACES:
         raise match.MatchError(f"colour space '{colorspace}' is not one of {', '.join(COLORSPACES)}")
@@ -60,7 +61,7 @@ def read_image(path: str | Path, colorspace: str = "auto") -> PlateImage:
         raise match.MatchError(f"cannot read '{path.name}' as an image: {first_line}") from None
     try:
         is_float = bool(image.is_float)
-        if not is_float:
+        if data or not is_float:
             image.colorspace_settings.name = "Non-Color"  # the stored values, decoded below when they are sRGB
         width, height = image.size
         channels = image.channels
@@ -106,7 +107,7 @@ def read_depth(path: str | Path, camera: match.PlateCamera, planar: bool = True)
     """A depth pass (its first channel, metres) as the distance along each pixel's ray, (H, W); NaN where it holds no
     surface (not finite, at most 0, or Blender's background 1e10). ``planar``: the values are depths along the camera
     axis (Blender's Z pass), turned into ranges."""
-    image = read_image(path, "linear")
+    image = read_image(path, "linear", data=True)
     depth = image.pixels[..., 0].copy()
     if depth.shape != (camera.height, camera.width):
         raise match.MatchError(f"depth pass '{Path(path).name}' is {depth.shape[1]}x{depth.shape[0]} px but the plate "
