@@ -537,7 +537,8 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--region", type=_region, action="append", metavar="MASK:DISTANCE_M",
                      help="a surface at a known distance: mask image and metres (repeat for each; regions share one "
                           "unknown surface colour unless given MASK:DISTANCE_M:NAME)")
-    fit.add_argument("--depth", help="EXR depth pass (first channel, metres; Blender's Z pass): its surfaces are fitted")
+    fit.add_argument("--depth", help="EXR depth pass (first channel, metres; Blender's Z pass): its surfaces are "
+                                     "fitted")
     fit.add_argument("--depth-mask", help="image, white where the depth pass's surfaces count (default: all but sky)")
     fit.add_argument("--depth-range", action="store_true", help="the depth pass holds distances along each ray, not "
                                                                 "depths along the camera axis")

@@ -64,7 +64,8 @@ def _haze_with_visibility(settings, shape, visibility: float) -> tuple[tuple[flo
     total extinction at 550 nm gives ``visibility`` metres."""
     rayleigh_per_m = np.asarray(settings.rayleigh_scattering_per_km, dtype=float) / 1000.0
     extinction = haze_extinction_for_visibility(visibility, settings.wavelengths_nm, rayleigh_per_m)
-    scattering, absorption = haze_for_extinction(extinction, settings.wavelengths_nm, shape, _absorption_ratio(settings))
+    scattering, absorption = haze_for_extinction(extinction, settings.wavelengths_nm, shape,
+                                                 _absorption_ratio(settings))
     return tuple((scattering * 1000.0).tolist()), tuple((absorption * 1000.0).tolist())
 
 

@@ -25,12 +25,13 @@ search runs a few iterations from each of the best points of a coarse grid over 
 exposure and L0 solved linearly there), whose suns lie apart, and goes on from the best.
 
 What the plate cannot tell: the covariance sigma^2 (J^T J)^-1 / (3 :data:`EFFECTIVE_SAMPLES`) at the solution, with
-sigma the pixels' relative residual (at least :data:`MODEL_NOISE_FLOOR`: a photograph never matches a
-single-scattering model better), gives each parameter's standard error. A parameter whose error passes its tolerance (:data:`PARAMETERS`), or that runs to
-a bound, is reported with the parameter it trades with (their correlation): an atmosphere parameter is then held (at
-the start preset's value where the rest can make up for it) and the rest fitted again; the sun and the exposure, with
-no start value to fall back on, stay free and are reported as uncertain. An answer is never reported as more precise
-than the plate allows, and a look that does not reproduce a region says so (:attr:`Fit.misfit`).
+sigma the pixels' relative residual (at least :data:`MODEL_NOISE_FLOOR`: a photograph never matches a single-
+scattering model better), gives each parameter's standard error. A parameter whose error passes its tolerance
+(:data:`PARAMETERS`), or that runs to a bound, is reported with the parameter it trades with (their correlation): an
+atmosphere parameter is then held (at the start preset's value where the rest can make up for it) and the rest
+fitted again; the sun and the exposure, with no start value to fall back on, stay free and are reported as
+uncertain. An answer is never reported as more precise than the plate allows, and a look that does not reproduce a
+region says so (:attr:`Fit.misfit`).
 
 Lengths m, angles deg unless named _rad, radiance in the plate's linear units over 2^EV. Numpy only.
 """
@@ -421,12 +422,8 @@ class _Samples:
     rows: np.ndarray
     cols: np.ndarray
 
-    def rows_weight(self) -> np.ndarray:
-        """Per residual entry (pixel x channel) weight, flattened like the residual."""
-        return np.repeat(self.weight, 3)
-
     def per_pixel_scale(self) -> np.ndarray:
-        """sqrt(3 n_region) per residual entry: the factor that turns a weighted residual into a pixel's relative one."""
+        """sqrt(3 n_region) per residual entry: what turns a weighted residual into a pixel's relative one."""
         counts = np.bincount(self.region, minlength=len(self.region_names)).astype(np.float64)
         return np.repeat(np.sqrt(3.0 * counts[self.region]), 3)
 
@@ -1071,9 +1068,9 @@ ROUND_TRIP_DISTANCES_M = (2_000.0, 20_000.0)
 def round_trip_case(seed: int, start: Atmosphere, *, width: int = 192, height: int = 108, noise: float = 0.01
                     ) -> tuple[Plate, Look, np.ndarray]:
     """A plate of a random look within the Earth presets' ranges (:data:`ROUND_TRIP_VISIBILITY_M` and the rest; the
-    haze's absorption and scale height and the ozone are ``start``'s), sky above the horizon and the same sunlit ground
-    (a random albedo) at two distances below it, 1 % noise, an exposure that puts the brightest pixels near 0.6, the sRGB transfer and 8 bits. Returns
-    (plate, the true look, the ground's true radiance L0)."""
+    haze's absorption and scale height and the ozone are ``start``'s): sky above the horizon and the same sunlit ground
+    (a random albedo) at two distances below it, 1 % noise, an exposure that puts the brightest pixels near 0.6, the
+    sRGB transfer and 8 bits. Returns (plate, the true look, the ground's true radiance L0)."""
     rng = np.random.default_rng(seed)
     template = _Template.of(start)
     wavelengths = start.wavelengths_nm

@@ -25,7 +25,8 @@ def bands() -> dict[str, np.ndarray]:
     """The masks of a level camera with the horizon in the middle: sky above, a far and a near band of ground."""
     rows = np.arange(HEIGHT)[:, None] * np.ones((1, WIDTH))
     horizon = HEIGHT / 2
-    return {"sky": rows < horizon - 5, "far": (rows >= horizon + 1) & (rows < horizon + 7), "near": rows >= horizon + 13}
+    return {"sky": rows < horizon - 5, "far": (rows >= horizon + 1) & (rows < horizon + 7),
+            "near": rows >= horizon + 13}
 
 
 def camera() -> match.PlateCamera:

@@ -66,6 +66,26 @@ def test_match_plate_saves_and_applies_the_plates_look(addon, user_presets, tmp_
     assert tuple(image.size) == (3 * match_plates.WIDTH, match_plates.HEIGHT)
 
 
+def test_match_plate_from_the_scene_settings_without_applying(addon, user_presets, tmp_path):
+    scene = addon
+    _camera(scene)
+    paths = match_plates.write_plate(tmp_path)
+    before = _settings(scene)
+    result = bpy.ops.atmos.match_plate(filepath=str(paths["plate"]), sky_mask=str(paths["sky"]),
+                                       surface_mask_1=str(paths["far"]), distance_1=15_000.0,
+                                       surface_mask_2=str(paths["near"]), distance_2=2_000.0, start="SCENE",
+                                       preset_name="From Scene", apply=False)
+    assert result == {"FINISHED"}
+    saved = presets.load("From Scene", user_presets)
+    assert visibility_m(saved.atmosphere) == pytest.approx(match_plates.TRUTH.visibility_m, rel=0.10)
+    assert "from the 'scene' preset" in saved.sources[0]
+    assert _settings(scene) == before and scene.world is None   # not applied: the scene as it was
+    # a second run under the same name needs Overwrite
+    with pytest.raises(RuntimeError, match="exists"):
+        bpy.ops.atmos.match_plate(filepath=str(paths["plate"]), sky_mask=str(paths["sky"]),
+                                  surface_mask_1=str(paths["near"]), start="SCENE", preset_name="From Scene")
+
+
 def test_a_refused_plate_reports_once_and_changes_nothing(addon, user_presets, tmp_path):
     scene = addon
     _camera(scene)

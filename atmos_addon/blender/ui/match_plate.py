@@ -268,10 +268,10 @@ def camera_view(scene, width: int, height: int) -> tuple[float, float, float]:
 
 # ---------------------------------------------------------------------------------------------- the operator
 
-def _start_items(self, context):
-    items = [("AUTO", "Best Built-in", "Fit from every built-in preset and keep the best"),
-             ("SCENE", "Scene Settings", "Fit from the scene's current atmosphere")]
-    return items + [(name.upper(), name.title(), f"Fit from the '{name}' preset") for name in presets.BUILTIN_NAMES]
+#: The operator's start choices: the best built-in, the scene's settings, or one built-in preset.
+START_ITEMS = (("AUTO", "Best Built-in", "Fit from every built-in preset and keep the best"),
+               ("SCENE", "Scene Settings", "Fit from the scene's current atmosphere"),
+               *((name.upper(), name.title(), f"Fit from the '{name}' preset") for name in presets.BUILTIN_NAMES))
 
 
 class ATMOS_OT_match_plate(bpy.types.Operator):
@@ -311,7 +311,7 @@ class ATMOS_OT_match_plate(bpy.types.Operator):
                             default=False)
     exposure_known: BoolProperty(name="Exposure Known", description="The plate's exposure is the scene's Film "
                                  "exposure (else it is fitted)", default=False)
-    start: EnumProperty(name="Start From", items=_start_items)
+    start: EnumProperty(name="Start From", items=START_ITEMS, default="AUTO")
     preset_name: StringProperty(name="Preset Name", description="User preset the result is saved as",
                                 default="Matched Plate")
     overwrite: BoolProperty(name="Overwrite", description="Replace a user preset of that name", default=False)
