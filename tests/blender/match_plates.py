@@ -50,21 +50,45 @@ def _save(path: Path, rgb: np.ndarray, exr: bool) -> Path:
     return path
 
 
-def write_plate(folder: Path, exr: bool = False, look: match.Look = TRUTH) -> dict[str, Path]:
+def plane_distances() -> dict[str, np.ndarray]:
+    """Ranges (m) of the far and near bands when they are walls across the view at y = 15 and 2 km (the camera at the
+    origin looking along +Y): the wall's depth times each pixel's range per unit depth."""
+    rows, cols = np.indices((HEIGHT, WIDTH))
+    per_depth = camera().range_per_depth(rows, cols)
+    return {name: DISTANCES_M[name] * per_depth for name in ("far", "near")}
+
+
+def write_plate(folder: Path, exr: bool = False, look: match.Look = TRUTH, walls: bool = False) -> dict[str, Path]:
     """The plate (PNG: sRGB 8 bits; EXR: linear float) and its masks and depth pass in ``folder``; returns the paths
-    by name (plate, sky, far, near, depth)."""
+    by name (plate, sky, far, near, ground: far and near, depth). ``walls``: the bands are the walls of
+    :func:`plane_distances` instead of surfaces at one range each."""
     folder.mkdir(parents=True, exist_ok=True)
     masks = bands()
-    regions = [("sky", masks["sky"], None)] + [(name, masks[name], DISTANCES_M[name]) for name in ("far", "near")]
+    distances = plane_distances() if walls else DISTANCES_M
+    regions = [("sky", masks["sky"], None)] + [(name, masks[name], distances[name]) for name in ("far", "near")]
     plate = match.synthetic_plate(look, camera(), regions, GROUND, noise=0.005, srgb=not exr, seed=5)
     paths = {"plate": _save(folder / ("plate.exr" if exr else "plate.png"),
                             plate.pixels if exr else match.linear_to_srgb(plate.pixels), exr)}
+    masks["ground"] = masks["far"] | masks["near"]
     for name, mask in masks.items():
         paths[name] = _save(folder / f"{name}.png", np.repeat(mask[..., None].astype(float), 3, axis=2), False)
     depth = np.full((HEIGHT, WIDTH), 1.0e10)
+    masks = bands()
     rows, cols = np.indices((HEIGHT, WIDTH))
     for name in ("far", "near"):
         planar = DISTANCES_M[name] / camera().range_per_depth(rows, cols)  # Blender's Z pass: along the camera axis
         depth = np.where(masks[name], planar, depth)
     paths["depth"] = _save(folder / "depth.exr", np.repeat(depth[..., None], 3, axis=2), True)
     return paths
+
+
+def add_walls(scene) -> None:
+    """The walls of :func:`plane_distances` as meshes: the far one up to the horizon, the near one up to the row between
+    the bands (so the far band's rays pass over it)."""
+    half = np.tan(np.radians(FOV_DEG) / 2.0) / (WIDTH / 2.0)
+    gap_row = HEIGHT / 2 + 10
+    near_top = DISTANCES_M["near"] * (HEIGHT / 2.0 - gap_row) * half
+    for name, y, top in (("Far Wall", DISTANCES_M["far"], 0.0), ("Near Wall", DISTANCES_M["near"], near_top)):
+        mesh = bpy.data.meshes.new(name)
+        mesh.from_pydata([(-1e5, y, -1e5), (1e5, y, -1e5), (1e5, y, top), (-1e5, y, top)], [], [(0, 1, 2, 3)])
+        scene.collection.objects.link(bpy.data.objects.new(name, mesh))

@@ -86,6 +86,25 @@ def test_match_plate_from_the_scene_settings_without_applying(addon, user_preset
                                   surface_mask_1=str(paths["near"]), start="SCENE", preset_name="From Scene")
 
 
+def test_distances_from_the_scene_geometry(addon, user_presets, tmp_path):
+    scene = addon
+    _camera(scene)
+    match_plates.add_walls(scene)
+    paths = match_plates.write_plate(tmp_path, walls=True)
+    distance = match_plate.scene_distances(scene, match_plates.camera())
+    truth = match_plates.plane_distances()
+    for name, mask in match_plates.bands().items():
+        if name != "sky":
+            assert distance[mask] == pytest.approx(truth[name][mask], rel=1e-4)
+    result = bpy.ops.atmos.match_plate(filepath=str(paths["plate"]), sky_mask=str(paths["sky"]),
+                                       use_scene_geometry=True, geometry_mask=str(paths["ground"]), start="CLEAR",
+                                       preset_name="From Geometry", apply=False)
+    assert result == {"FINISHED"}
+    saved = presets.load("From Geometry", user_presets)
+    assert visibility_m(saved.atmosphere) == pytest.approx(match_plates.TRUTH.visibility_m, rel=0.10)
+    assert saved.sun_elevation_deg == pytest.approx(match_plates.TRUTH.sun_elevation_deg, abs=1.0)
+
+
 def test_a_refused_plate_reports_once_and_changes_nothing(addon, user_presets, tmp_path):
     scene = addon
     _camera(scene)

@@ -119,9 +119,43 @@ def read_depth(path: str | Path, camera: match.PlateCamera, planar: bool = True)
     return depth
 
 
+#: Most rays the scene-geometry distances cast; a larger plate casts one ray per block of pixels.
+MAX_GEOMETRY_RAYS = 40_000
+
+
+def scene_distances(scene, camera: match.PlateCamera, skip: np.ndarray | None = None) -> np.ndarray:
+    """Distances (m) along the plate's pixel rays from the scene camera to the scene's own geometry, (H, W); NaN where
+    a ray meets nothing or ``skip`` is set. One ray per block of pixels when the plate has more than
+    :data:`MAX_GEOMETRY_RAYS` (the block takes its ray's distance); metres from Blender units as the atmosphere reads
+    them (:func:`~atmos_addon.blender.scene_reading.metres_per_unit`)."""
+    from .. import scene_reading
+
+    if scene.camera is None:
+        raise match.MatchError("the scene has no camera to see its geometry through")
+    step = max(1, math.ceil(math.sqrt(camera.width * camera.height / MAX_GEOMETRY_RAYS)))
+    rows, cols = np.meshgrid(np.arange(0, camera.height, step), np.arange(0, camera.width, step), indexing="ij")
+    centre_rows = np.minimum(rows + (step - 1) / 2.0, camera.height - 1)
+    centre_cols = np.minimum(cols + (step - 1) / 2.0, camera.width - 1)
+    directions = camera.directions(centre_rows.ravel(), centre_cols.ravel())
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    origin = scene.camera.matrix_world.translation.copy()
+    metres = scene_reading.metres_per_unit(scene)
+    coarse = np.full(directions.shape[0], np.nan)
+    for index, direction in enumerate(directions):
+        hit, location, *_ = scene.ray_cast(depsgraph, origin, Vector(direction))
+        if hit:
+            coarse[index] = (location - origin).length * metres
+    coarse = coarse.reshape(rows.shape)
+    distance = np.repeat(np.repeat(coarse, step, axis=0), step, axis=1)[:camera.height, :camera.width]
+    if skip is not None:
+        distance = np.where(skip, np.nan, distance)
+    return np.where(distance > 0.0, distance, np.nan)
+
+
 @dataclass
 class SurfaceInput:
-    """A surface region: a mask file and its distance (m), or a depth pass (``depth`` with ``mask`` optional)."""
+    """A surface region: a mask file and its distance (m), a depth pass (``depth_path``, ``mask_path`` optional) or
+    the scene's own geometry seen through its camera (``scene_geometry``, ``mask_path`` optional)."""
 
     name: str
     mask_path: str | None
@@ -129,6 +163,7 @@ class SurfaceInput:
     depth_path: str | None = None
     depth_planar: bool = True
     surface: str = "ground"
+    scene_geometry: bool = False
 
 
 @dataclass
@@ -146,10 +181,11 @@ class MatchInputs:
     altitude_m: float = 0.0
 
 
-def build_plate(inputs: MatchInputs, camera_from: Callable[[int, int], tuple[float, float, float]] | None = None
-                ) -> match.Plate:
+def build_plate(inputs: MatchInputs, camera_from: Callable[[int, int], tuple[float, float, float]] | None = None,
+                scene=None) -> match.Plate:
     """Read the plate, masks and depth passes into a :class:`~.match.Plate`; refuses bad input with MatchError.
-    ``camera_from(width, height)`` gives (field of view, pitch, heading) in degrees instead of ``inputs``' own."""
+    ``camera_from(width, height)`` gives (field of view, pitch, heading) in degrees instead of ``inputs``' own;
+    ``scene`` is the scene whose geometry a ``scene_geometry`` surface measures."""
     if not inputs.sky_mask_path:
         raise match.MatchError("no sky marked: give a sky mask (white where the plate shows sky)")
     image = read_image(inputs.plate_path, inputs.colorspace)
@@ -165,7 +201,13 @@ def build_plate(inputs: MatchInputs, camera_from: Callable[[int, int], tuple[flo
     sky = read_mask(inputs.sky_mask_path, (height, width))
     regions = [match.Region("sky", sky)]
     for surface in inputs.surfaces:
-        if surface.depth_path:
+        if surface.scene_geometry:
+            if scene is None:
+                raise match.MatchError("distances from the scene's geometry need a scene")
+            distance = scene_distances(scene, camera, skip=sky)
+            mask = (read_mask(surface.mask_path, (height, width)) if surface.mask_path else np.isfinite(distance))
+            regions.append(match.Region(surface.name, mask & np.isfinite(distance), distance, surface.surface))
+        elif surface.depth_path:
             distance = read_depth(surface.depth_path, camera, surface.depth_planar)
             mask = (read_mask(surface.mask_path, (height, width)) if surface.mask_path else
                     np.isfinite(distance) & ~sky)
@@ -301,6 +343,11 @@ class ATMOS_OT_match_plate(bpy.types.Operator):
     distance_3: FloatProperty(name="Distance 3 (m)", default=20000.0, min=0.0)
     depth_pass: StringProperty(name="Depth Pass", description="EXR whose first channel is each pixel's depth in "
                                "metres (Blender's Z pass); its surfaces are fitted too", subtype="FILE_PATH")
+    use_scene_geometry: BoolProperty(name="Scene Geometry", description="Distances from the scene's own objects seen "
+                                     "through the scene camera (the plate's location modelled in the scene)",
+                                     default=False)
+    geometry_mask: StringProperty(name="Geometry Mask", description="Image, white where the scene's geometry matches "
+                                  "the plate (empty: wherever a ray meets it outside the sky)", subtype="FILE_PATH")
     use_scene_camera: BoolProperty(name="From Scene Camera", description="Field of view, pitch and heading from the "
                                    "scene camera", default=True)
     fov_deg: FloatProperty(name="Field of View", description="Horizontal field of view, degrees", default=50.0,
@@ -333,6 +380,9 @@ class ATMOS_OT_match_plate(bpy.types.Operator):
             row.prop(self, f"surface_mask_{slot}")
             row.prop(self, f"distance_{slot}", text="")
         layout.prop(self, "depth_pass")
+        layout.prop(self, "use_scene_geometry")
+        if self.use_scene_geometry:
+            layout.prop(self, "geometry_mask")
         layout.prop(self, "use_scene_camera")
         if not self.use_scene_camera:
             layout.prop(self, "fov_deg")
@@ -354,6 +404,9 @@ class ATMOS_OT_match_plate(bpy.types.Operator):
         if self.depth_pass:
             surfaces.append(SurfaceInput("depth pass", None, depth_path=bpy.path.abspath(self.depth_pass),
                                          surface="depth pass"))
+        if self.use_scene_geometry:
+            surfaces.append(SurfaceInput("scene geometry", bpy.path.abspath(self.geometry_mask) if self.geometry_mask
+                                         else None, scene_geometry=True, surface="scene geometry"))
         inputs = MatchInputs(plate_path, self.fov_deg, bpy.path.abspath(self.sky_mask) if self.sky_mask else "",
                              surfaces, self.colorspace.lower(), pitch_deg=self.pitch_deg)
         knowns = match.Knowns()
@@ -378,7 +431,7 @@ class ATMOS_OT_match_plate(bpy.types.Operator):
             inputs, knowns = self._inputs(context)
             starts = start_atmospheres(self.start.lower(), scene)
             plate = build_plate(inputs, (lambda width, height: camera_view(scene, width, height))
-                                if self.use_scene_camera else None)
+                                if self.use_scene_camera else None, scene)
             wm.progress_begin(0, 100)
             try:
                 start_name, result = run(plate, starts, knowns,
