@@ -30,6 +30,8 @@ COMPARISON_IMAGE = "Atmos Match Comparison"
 #: Colour spaces a plate may be given in: auto takes float files (EXR, HDR) as scene-linear and 8/16-bit ones (PNG,
 #: JPEG, TIFF) as sRGB-encoded.
 COLORSPACES = ("auto", "srgb", "linear")
+#: File formats whose values do not clip at 1 (scene-linear float data).
+HIGH_RANGE_FORMATS = frozenset(("OPEN_EXR", "OPEN_EXR_MULTILAYER", "HDR"))
 #: A depth pass value at or beyond this is the background (Blender writes 1e10 where no surface is), m.
 DEPTH_BACKGROUND_M = 1.0e9
 #: Number of surface mask slots in the operator.
@@ -46,9 +48,10 @@ class PlateImage:
 
 
 def read_image(path: str | Path, colorspace: str = "auto", data: bool = False) -> PlateImage:
-    """Read ``path`` with Blender's image loading; sRGB-encoded values are decoded (IEC 61966-2-1) when ``colorspace``
-    says so (or, for ``auto``, when the file holds 8 or 16-bit integers). A float file's values come in Blender's
-    scene-linear space, or as stored with ``data`` (a depth pass). Raises :class:`~.match.MatchError`."""
+    """Read ``path`` with Blender's image loading as linear RGB. ``auto``: a float buffer (EXR, HDR, and the 16-bit
+    PNG or TIFF Blender decodes itself) in Blender's scene-linear space, an 8-bit one as sRGB-encoded values decoded
+    here (IEC 61966-2-1); ``srgb``: the stored values decoded; ``linear`` or ``data`` (a depth pass): the stored
+    values as they are. Integer files (PNG, JPEG, TIFF...) clip at 1. Raises :class:`~.match.MatchError`."""
     path = Path(path)
     if colorspace not in COLORSPACES:
         raise match.MatchError(f"colour space '{colorspace}' is not one of {', '.join(COLORSPACES)}")
@@ -61,22 +64,23 @@ def read_image(path: str | Path, colorspace: str = "auto", data: bool = False) -
         raise match.MatchError(f"cannot read '{path.name}' as an image: {first_line}") from None
     try:
         is_float = bool(image.is_float)
-        if data or not is_float:
+        high_range = image.file_format in HIGH_RANGE_FORMATS
+        raw = data or colorspace != "auto" or not is_float
+        if raw:
             image.colorspace_settings.name = "Non-Color"  # the stored values, decoded below when they are sRGB
         width, height = image.size
         channels = image.channels
         if width == 0 or height == 0:
             raise match.MatchError(f"'{path.name}' holds no pixels (is it an image Blender reads?)")
-        data = np.empty(width * height * channels, dtype=np.float32)
-        image.pixels.foreach_get(data)
+        values = np.empty(width * height * channels, dtype=np.float32)
+        image.pixels.foreach_get(values)
     finally:
         bpy.data.images.remove(image)
-    data = data.reshape(height, width, channels)[::-1].astype(np.float64)
-    rgb = data[..., :3] if channels >= 3 else np.repeat(data[..., :1], 3, axis=2)
-    srgb = colorspace == "srgb" or (colorspace == "auto" and not is_float)
-    if srgb:
+    values = values.reshape(height, width, channels)[::-1].astype(np.float64)
+    rgb = values[..., :3] if channels >= 3 else np.repeat(values[..., :1], 3, axis=2)
+    if not data and (colorspace == "srgb" or (colorspace == "auto" and not is_float)):
         rgb = match.srgb_to_linear(np.clip(rgb, 0.0, 1.0))
-    return PlateImage(np.ascontiguousarray(rgb), None if is_float and not srgb else 1.0, is_float)
+    return PlateImage(np.ascontiguousarray(rgb), None if high_range else 1.0, is_float)
 
 
 def read_mask(path: str | Path, shape: tuple[int, int]) -> np.ndarray:
