@@ -403,7 +403,9 @@ def cmd_match(args: argparse.Namespace) -> int:
         plate = match_plate.build_plate(inputs)
         _log(f"atmos: matching {Path(args.plate).name} ({plate.camera.width}x{plate.camera.height} px, "
              f"{len(plate.regions)} regions) from {', '.join(starts)}")
+        began = time.perf_counter()
         start_name, result = match_plate.run(plate, starts, knowns, _MatchProgress())
+        seconds = time.perf_counter() - began
         preset = match_plate.preset_from_fit(result, name, args.plate, start_name)
         preset_library.save(preset, output)
         if args.save_preset:
@@ -413,7 +415,8 @@ def cmd_match(args: argparse.Namespace) -> int:
         raise CliError(f"cannot match the plate: {error}") from error
     except preset_library.PresetError as error:
         raise CliError(str(error)) from error
-    print(f"start: {start_name} ({result.seconds:.1f} s)")
+    print(f"start: {start_name} (the best of {len(starts)}; {seconds:.1f} s)" if len(starts) > 1 else
+          f"start: {start_name} ({seconds:.1f} s)")
     for line in match.describe(result):
         print(line)
     if args.comparison:
