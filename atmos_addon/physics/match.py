@@ -709,8 +709,6 @@ class Fit:
         if "haze_blue" in errors:
             errors["haze_red"] = max(errors.get("haze_red", 0.0), errors["haze_blue"])
         for name, text in values.items():
-            if name == "haze_red" and "haze_blue" in self.held and name not in self.held:
-                text += f" (blue held: {self.held['haze_blue']})"
             if name in self.held:
                 text += f" ({'uncertain' if name in self.fitted else 'held'}: {self.held[name]})"
             elif name in errors and name in self.fitted:
@@ -718,6 +716,8 @@ class Fit:
                 parameter = PARAMETERS[_INDEX[name]]
                 text += f" +- {100.0 * error:.2g} %" if parameter.unit == "relative" else (
                     f" +- {error:.2g} {parameter.unit}".rstrip())
+            if name == "haze_red" and "haze_blue" in self.held and name not in self.held:
+                text += f" (blue held: {self.held['haze_blue']})"
             lines[name] = text
         return lines
 
