@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""``tools/compare_hosek_wilkie.py``: its Blender half renders the Hosek-Wilkie Sky Texture where it says it does.
+"""``validation/compare_hosek_wilkie.py``: its Blender half renders the Hosek-Wilkie Sky Texture where it says it does.
 
-Two tiny Cycles renders (the tool's own :func:`~tools.compare_hosek_wilkie.render_hosek_wilkie`, sun 20 deg, the
+Two tiny Cycles renders (the tool's own :func:`~validation.compare_hosek_wilkie.render_hosek_wilkie`, sun 20 deg, the
 clear preset's turbidity): the zenith and the sky 5 deg above the horizon toward the sun. What a wrong sun
 direction, a wrong sky type or a broken read-back would change: toward a 20 deg sun the low sky is far brighter
 than the zenith (the tool's run, ``docs/hosek_wilkie.md``: 11.4 times; the same view away from the sun: 8.1, so a sun
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from atmos_addon import presets
-from tools.compare_hosek_wilkie import (
+from validation.compare_hosek_wilkie import (
     VIEWS,
     preetham_turbidity,
     relative_luminance,
