@@ -141,7 +141,7 @@ def measure_precise(multiple_scattering: bool) -> dict[str, dict]:
 
 def setup_scene(bpy, name: str = "SkyCompare"):
     """Empty scene, Cycles on the CPU with one thread, a world with a Sky Texture, one tiny perspective camera;
-    (scene, Sky Texture node, camera). Shared with ``validation/compare_hosek_wilkie.py``."""
+    (scene, Sky Texture node, camera)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
@@ -285,7 +285,7 @@ def markdown_tables(ours: dict, ours_approx: dict, brute_force: dict, blender_ru
 
 def measure_in_each_blender(measure, script: Path, interpreters: list[str]) -> list[dict]:
     """``measure()`` with this interpreter's bpy, then ``script --measure-json`` with each other interpreter (the
-    tools' ``--also``): one result per Blender, this one first. Shared with ``validation/compare_hosek_wilkie.py``."""
+    tools' ``--also``): one result per Blender, this one first."""
     runs = [measure()]
     for python in interpreters:
         with tempfile.TemporaryDirectory() as tmp:
