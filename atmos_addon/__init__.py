@@ -1,8 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Atmos: physically based aerial perspective, sky and sunlight (Hoffman & Preetham 2002).
 
-Importing this package never imports ``bpy``: ``atmos_addon.physics`` (and the preset and
-reference code built on it) work in plain Python with numpy. The Blender layer is imported
+Importing this package never imports ``bpy``: ``atmos_addon.physics`` (and the preset code
+built on it) work in plain Python with numpy. The Blender layer is imported
 only by :func:`register` and by modules that need it.
 """
 

@@ -56,6 +56,10 @@ AOV_COVERAGE = "atmos_coverage"
 AOV_DISTANCE = "atmos_distance"
 AOV_VIEW = "atmos_view"
 AOV_MOMENTS = "atmos_moments"
+#: Object custom property (read by an Object Attribute node in the AOV outputs group) that Atmos sets to 1 on the
+#: objects a collection holds out in every rendered view layer: their materials then write no AOVs, so a pixel
+#: at a held-out object's edge is composited from the visible surface's samples alone.
+HOLDOUT_ATTRIBUTE = "atmos_holdout"
 AOVS = {
     "COMPOSITOR": ((AOV_TRANSMITTANCE, "COLOR"), (AOV_INSCATTERING, "COLOR"), (AOV_TRANSMITTANCE_SQUARED, "COLOR"),
                    (AOV_TRANSMITTANCE_CUBED, "COLOR"), (AOV_COVERAGE, "VALUE")),
@@ -72,8 +76,8 @@ def material_aovs(mode: str) -> tuple[str, ...]:
 ENVIRONMENT_PASS = "Environment"
 
 #: Eevee's world goes one flat colour above this camera clip end / clip start (float32 precision of the projection;
-#: measured with tools/measure_eevee_clip_range.py on 4.5.15, 5.2.3 and 5.3.0: every clip start from 1 mm to 10 m
-#: rendered the sky up to 1.6e7, none from 2.2e7).
+#: measured on 4.5.15, 5.2.3 and 5.3.0 with Blender's own Sky Texture, Eevee at 32x16 px, the camera 80 deg up from
+#: straight down: every clip start from 1 mm to 10 m rendered the sky up to 1.6e7, none from 2.2e7).
 EEVEE_CLIP_RATIO_LIMIT = 1.6e7
 
 NOTE_IN_RENDER_NEEDS_CYCLES = "In-Render mode needs Cycles: this engine renders with the Compositor mode"
@@ -103,7 +107,7 @@ class SceneFacts:
     clip_end_m: float | None = None   #: the scene camera's clip end, m
     key_tiles: int = 1                #: key tiles the scene's Precise table holds (> 1: a camera or sun that moves)
     animated_settings: tuple[str, ...] = ()  #: the Atmos settings keys or drivers change over time (interface names)
-    holdout: bool = False             #: a view layer holds out a collection with objects
+    holdout: bool = False             #: a collection is held out in some rendered view layers, not all
     blurs: tuple[str, ...] = ()       #: "depth of field", "motion blur": what the scene's camera and render blur
 
     def __post_init__(self) -> None:
@@ -221,10 +225,11 @@ def animated_settings_note(facts: SceneFacts) -> str | None:
             "renders with the values last applied (animate the sun lamp or the camera, or render each value as a shot)")
 
 
-#: Where a held-out object's hole meets a hazed surface behind it, the held-out material's AOVs still count in the
-#: pixel, so the edge pixels are off (tools/measure_silhouettes.py, Cycles 5.2.3: 5.7 % mean, 59 % max).
-NOTE_HOLDOUT = ("Holdout collection: pixels at a held-out object's edge are off by 6 % on average, up to 59 % "
-                "(docs/silhouettes.md)")
+#: A collection held out in some rendered view layers and not in others: its objects are not marked (one object
+#: property cannot say both), so where their hole meets a hazed surface behind it their AOVs still count in the
+#: pixel (tools/measure_silhouettes.py with the marks off, Cycles 5.2.3: 5.5 % mean, 59 % max).
+NOTE_HOLDOUT = ("Holdout differs between view layers: pixels at a held-out object's edge are off by 6 % on "
+                "average, up to 59 % (docs/silhouettes.md)")
 
 
 def holdout_note(facts: SceneFacts, mode: str) -> str | None:

@@ -39,7 +39,7 @@ SKY_LIGHTING = GroupKind("Atmos Sky Lighting", "ShaderNodeTree", 1, per_world=Tr
 SKY_VIEW = GroupKind("Atmos Sky View", "ShaderNodeTree", 2)
 #: The materials' group (one node of the outputs group) and its outputs (:mod:`.surface`).
 SURFACE = GroupKind("Atmos Surface AOVs", "ShaderNodeTree", 4)
-SURFACE_OUTPUTS = GroupKind("Atmos AOV Outputs", "ShaderNodeTree", 2)
+SURFACE_OUTPUTS = GroupKind("Atmos AOV Outputs", "ShaderNodeTree", 3)
 COMPOSITE = GroupKind("Atmos Aerial Composite", "CompositorNodeTree", 4)
 PER_PIXEL = GroupKind("Atmos Aerial Composite (Per Pixel)", "CompositorNodeTree", 10)
 IN_RENDER_SURFACE = GroupKind("Atmos In-Render Surface", "ShaderNodeTree", 3)

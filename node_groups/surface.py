@@ -4,7 +4,8 @@
 It holds one node, the "Atmos AOV Outputs" group, fed the material's Opacity and Transparency. Inside that: the
 "Atmos Aerial Perspective" group (outputs Transmittance and Inscattering), AOV outputs ``atmos_transmittance``,
 its square and cube ``atmos_transmittance2`` and ``atmos_transmittance3``, ``atmos_inscattering`` (colour) and
-``atmos_coverage`` (value), each weighted by the surface's opacity alpha = Opacity * (1 - Transparency); for the
+``atmos_coverage`` (value), each weighted by the surface's opacity alpha = Opacity * (1 - Transparency) * (1 - H)
+(H: the object's holdout mark, :data:`~atmos_addon.plan.HOLDOUT_ATTRIBUTE`, 0 where missing); for the
 Per Pixel mode, ``atmos_distance`` (alpha times the camera distance in km), ``atmos_view`` (alpha times the unit
 view direction) and ``atmos_moments`` (alpha (q, q^2, q^3), q = s / (s + s_0)) instead of those and the aerial
 group. The squares and cubes let the compositor tell two surfaces in one pixel apart (``composite.two_point``). The
@@ -24,7 +25,7 @@ import contextlib
 
 import bpy
 
-from ..plan import (AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MOMENTS, AOV_TRANSMITTANCE,
+from ..plan import (AOV_COVERAGE, AOV_DISTANCE, AOV_INSCATTERING, AOV_MOMENTS, AOV_TRANSMITTANCE, HOLDOUT_ATTRIBUTE,
                     AOV_TRANSMITTANCE_CUBED, AOV_TRANSMITTANCE_SQUARED, AOV_VIEW)
 from . import stamps
 from .parameters import METRES_PER_UNIT
@@ -62,7 +63,7 @@ def _ensure_interface(tree) -> None:
 
 def build_outputs_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None:
     """Build the outputs group in ``tree`` (its interface when missing): aerial group -> opacity weights -> AOV
-    outputs; alpha = Opacity * (1 - Transparency).
+    outputs; alpha = Opacity * (1 - Transparency) * (1 - H), H the object's holdout mark.
 
     Only the outputs of the ``evaluations`` in use ("COMPOSITOR": the aerial group and the transmittance and
     in-scattering AOVs; "PER_PIXEL": the distance and view AOVs) are built: Eevee compiles every AOV output
@@ -84,6 +85,15 @@ def build_outputs_group(tree, aerial_group, evaluations=("COMPOSITOR",)) -> None
     alpha.location = (-50, -250)
     links.new(group_in.outputs["Opacity"], alpha.inputs[0])
     links.new(one_minus.outputs[0], alpha.inputs[1])
+    # An object a collection holds out writes nothing (its mark, 0 where missing: blender/apply/holdouts.py).
+    held_out = nodes.new("ShaderNodeAttribute")
+    held_out.attribute_type, held_out.attribute_name = "OBJECT", HOLDOUT_ATTRIBUTE
+    held_out.location = (-500, -450)
+    shown = nodes.new("ShaderNodeMath")
+    shown.operation, shown.location = "SUBTRACT", (-250, -450)
+    shown.inputs[0].default_value = 1.0
+    links.new(held_out.outputs["Fac"], shown.inputs[1])
+    alpha = _math(nodes, links, "MULTIPLY", alpha.outputs[0], shown.outputs[0], (100, -300)).node
     per_sample = ()
     if "COMPOSITOR" in evaluations:
         aerial = nodes.new("ShaderNodeGroup")

@@ -14,7 +14,7 @@ scale-free (the models use different radiance units):
 
 Atmos's numbers come from :func:`~atmos_addon.physics.sky.sky_radiance` with the default (clear) Atmosphere
 and E_sun from :func:`~atmos_addon.physics.sun.sun_irradiance_ground`, in numpy, with both domes; a third row
-is the core's brute-force single scattering of the same atmosphere (:mod:`~atmos_addon.physics.reference`),
+is the brute-force single scattering of the same atmosphere (:mod:`validation.reference`),
 which separates the dome's approximations from the differences between atmospheres. Blender's models: 5.0
 'SINGLE_SCATTERING' and 'MULTIPLE_SCATTERING', 4.5 'NISHITA' (whichever the running ``bpy`` has), each also
 without ozone for the single-scattering one.
@@ -46,10 +46,11 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 if str(REPO_ROOT) not in sys.path:
     sys.path.insert(0, str(REPO_ROOT))
 
-from atmos_addon.physics import Atmosphere, precise, reference, sun_irradiance_ground  # noqa: E402
+from atmos_addon.physics import Atmosphere, precise, sun_irradiance_ground  # noqa: E402
 from atmos_addon.physics.sky import dome_distance_approx, sky_radiance  # noqa: E402
 from atmos_addon.physics.sun import LUMINANCE_WEIGHTS  # noqa: E402
 from tools.bench import write_generated_block  # noqa: E402  (one definition for the report tools)
+from validation import reference  # noqa: E402
 
 SUN_ELEVATIONS_DEG = (60.0, 20.0, 5.0, 1.0)
 #: Elevation of the "horizon" views, deg: just above the horizon row, where every model is defined.
@@ -104,7 +105,7 @@ def measure_atmos(dome_name: str = "accurate") -> dict[str, dict]:
 
 
 def measure_reference() -> dict[str, dict]:
-    """Brute-force single scattering of the same atmosphere (the core's reference): real density profiles and
+    """Brute-force single scattering of the same atmosphere (the validation reference): real density profiles and
     the sun's transmittance to every scattering point (no dome, no ground-level E_sun, no ozone)."""
     atm = Atmosphere()
     top = atm.planet_radius + atm.atmosphere_height
@@ -140,7 +141,7 @@ def measure_precise(multiple_scattering: bool) -> dict[str, dict]:
 
 def setup_scene(bpy, name: str = "SkyCompare"):
     """Empty scene, Cycles on the CPU with one thread, a world with a Sky Texture, one tiny perspective camera;
-    (scene, Sky Texture node, camera). Shared with ``tools/compare_hosek_wilkie.py``."""
+    (scene, Sky Texture node, camera)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
@@ -284,7 +285,7 @@ def markdown_tables(ours: dict, ours_approx: dict, brute_force: dict, blender_ru
 
 def measure_in_each_blender(measure, script: Path, interpreters: list[str]) -> list[dict]:
     """``measure()`` with this interpreter's bpy, then ``script --measure-json`` with each other interpreter (the
-    tools' ``--also``): one result per Blender, this one first. Shared with ``tools/compare_hosek_wilkie.py``."""
+    tools' ``--also``): one result per Blender, this one first."""
     runs = [measure()]
     for python in interpreters:
         with tempfile.TemporaryDirectory() as tmp:

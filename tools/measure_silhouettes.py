@@ -39,19 +39,14 @@ MODES = ("PER_PIXEL", "COMPOSITOR")
 MODE_NAMES = {"PER_PIXEL": "Per Pixel", "COMPOSITOR": "Compositor"}
 
 
-def apply_variant(scene, variant: str, width: int) -> None:
-    """Change ``scene`` as ``variant`` says (module docstring)."""
+def apply_variant(ss, scene, variant: str, width: int) -> None:
+    """Change ``scene`` as ``variant`` says (module docstring); ``ss``: the scenes module."""
     import bpy
 
     if variant == "film transparent":
         scene.render.film_transparent = True
     elif variant == "holdout":
-        near = bpy.data.objects["Near"]
-        collection = bpy.data.collections.new("Held out")
-        scene.collection.children.link(collection)
-        collection.objects.link(near)
-        scene.collection.objects.unlink(near)
-        bpy.context.view_layer.layer_collection.children[collection.name].holdout = True
+        ss.hold_out(scene, "Near")
     elif variant == "depth of field":
         dof = scene.camera.data.dof
         dof.use_dof, dof.focus_distance, dof.aperture_fstop = True, 200.0, 0.03
@@ -71,7 +66,7 @@ def apply_variant(scene, variant: str, width: int) -> None:
 
 def measure(ss, engine: str, mode: str, variant: str, width: int, height: int, samples: int) -> dict:
     scene = ss.build(engine, mode, width, height, samples)
-    apply_variant(scene, variant, width)
+    apply_variant(ss, scene, variant, width)
     result = ss.images(scene)
     row = {}
     for edge in ss.EDGES:

@@ -7,9 +7,9 @@ the complete reference (every scattering order) and as each quality level render
 Numpy only (no Blender). For each preset with a haze (clear, sunset, overcast), black targets stand on the
 horizon at V/7, V/2 and V (V = 3.912 / beta_ex(550 nm), the preset's visibility); the camera at 2 m looks at them
 0.2 deg above the horizon, across the sun (90 deg of azimuth from it), the sun 30 deg up. Contrast at 550 nm (the
-G channel): :func:`atmos_addon.physics.visibility.reference_contrast` (Monte Carlo, ``--paths`` per channel for
+G channel): :func:`validation.visibility.reference_contrast` (Monte Carlo, ``--paths`` per channel for
 the sky at the camera and at each target, a black ground, every order and the first alone),
-:func:`~atmos_addon.physics.visibility.level_contrast` for Fast, Balanced, Precise and Precise with multiple
+:func:`~validation.visibility.level_contrast` for Fast, Balanced, Precise and Precise with multiple
 scattering, and Koschmieder's exp(-3.912 d / V). ``--output`` rewrites the generated block of the report (the text
 around it is kept); without it the block is printed.
 """
@@ -26,10 +26,11 @@ import numpy as np
 REPO_ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO_ROOT))
 
-from atmos_addon.physics.visibility import (GREEN, LEVELS, koschmieder_contrast, level_contrast,  # noqa: E402
-                                            reference_contrast, sun_direction, view_direction, visibility_m)
+from atmos_addon.physics.visibility import GREEN, koschmieder_contrast, visibility_m  # noqa: E402
 from atmos_addon.presets import load  # noqa: E402
 from tools.bench import publish_generated_block  # noqa: E402  (one definition for the report tools)
+from validation.visibility import (LEVELS, level_contrast, reference_contrast, sun_direction,  # noqa: E402
+                                   view_direction)
 
 PRESETS = ("clear", "sunset", "overcast")
 FRACTIONS = (1.0 / 7.0, 0.5, 1.0)

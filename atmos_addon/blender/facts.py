@@ -7,7 +7,7 @@ Everything Atmos builds for a scene follows from :func:`plan_of`; :mod:`atmos_ad
 from __future__ import annotations
 
 from ..plan import Plan, SceneFacts, plan_for
-from .scene_reading import animation_curves, groups
+from .scene_reading import animation_curves, groups, held_out
 
 #: Scene property: the number of key tiles the scene's last Precise bake wrote (``apply.precise_tables``).
 KEY_TILES = "atmos_precise_key_tiles"
@@ -44,15 +44,9 @@ def blurs(scene) -> tuple[str, ...]:
 
 
 def has_holdout_collection(scene) -> bool:
-    """True when a view layer of ``scene`` holds out a collection with objects in it (Collection > Holdout)."""
-    def held_out(layer_collection) -> bool:
-        if layer_collection is None:   # a view layer Blender has not built yet (a scene being copied)
-            return False
-        if layer_collection.holdout and len(layer_collection.collection.all_objects):
-            return True
-        return any(held_out(child) for child in layer_collection.children)
-
-    return any(held_out(layer.layer_collection) for layer in scene.view_layers)
+    """True when a collection with objects in it is held out in some rendered view layers of ``scene`` and not in
+    others: those objects keep no holdout mark (:mod:`.apply.holdouts`)."""
+    return bool(held_out(scene)[1])
 
 
 def animated_settings(scene) -> tuple[str, ...]:

@@ -16,7 +16,7 @@ import bpy
 from bpy.app.handlers import persistent
 
 from . import facts, group_integrity, migration, orchestrator, sun_bake, sync
-from .apply import compositor, materials, precise_tables
+from .apply import compositor, holdouts, materials, precise_tables
 
 
 #: True while :func:`_evaluate_enabled_scenes` runs: the depsgraph handler waits for the re-sync that follows.
@@ -52,6 +52,8 @@ def on_depsgraph_update(scene, depsgraph) -> None:
         materials.follow_edits(edited)   # a surface Cycles folds away stays opaque
     if depsgraph.id_type_updated("SCENE"):
         compositor.follow_shown_view_layer(scene)   # a view layer switched on or off: the shown one composited
+    if depsgraph.id_type_updated("SCENE") or depsgraph.id_type_updated("COLLECTION"):
+        holdouts.follow(scene)   # a collection's Holdout switched, objects linked into one or out of it
     if orchestrator.note_counts(scene):
         orchestrator.pick_up_new_materials(scene, plan)
 

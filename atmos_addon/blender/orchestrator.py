@@ -25,7 +25,7 @@ import bpy
 from . import facts, group_integrity, migration, quality_choice, scene_reading, settings_io, sun_bake, sync
 from ..node_groups import registry, stamps
 from ..plan import Plan
-from .apply import compositor, in_render, materials, precise_tables, sun_drivers, sun_lamp, world
+from .apply import compositor, holdouts, in_render, materials, precise_tables, sun_drivers, sun_lamp, world
 
 #: Names of scenes whose ``enabled`` switch this module is setting (its update callback waits).
 _applying: set[str] = set()
@@ -281,6 +281,7 @@ def enable_effect(scene) -> Report:
         sampled = precise_tables.sample(scene)
         plan = bake_tables(scene, plan, sampled=sampled)   # the bake decides the blend of key tiles
     report = _apply_materials(scene, plan, only_new=True)
+    holdouts.install(scene, plan)
     if plan.compositor is not None:
         report.messages.extend(compositor.install(scene, plan))
     if lamp_message is not None:
@@ -359,11 +360,13 @@ def resync_all() -> None:
     """Drop every cache and update every scene with the effect on (stale node groups are rebuilt): after a file
     loads, and after an undo or redo step."""
     forget()
+    holdouts.forget()
     group_integrity.invalidate()
     for scene in bpy.data.scenes:
         settings = getattr(scene, "atmos", None)
         if settings is not None and settings.enabled:
             update(scene)
+            holdouts.install(scene, None)   # the marks as the loaded or restored view layers hold out
             note_counts(scene)
 
 
@@ -380,6 +383,7 @@ def disable_effect(scene) -> list[str]:
     """Remove everything :func:`enable_effect` added to ``scene``; the names of the stripped materials."""
     _set_enabled(scene, False)
     stripped = materials.remove(scene)
+    holdouts.remove(scene)
     compositor.remove(scene)
     in_render.remove(scene)
     world.remove(scene)

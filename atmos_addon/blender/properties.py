@@ -48,6 +48,23 @@ def _on_parameter(self, context) -> None:
             orchestrator.update(scene)
 
 
+def _kilometres(name: str):
+    """(get, set) of a kilometre view of the metre property ``name`` (the panel shows planet-sized lengths in km;
+    presets and the core keep metres). Setting writes ``name``, whose own update applies the change."""
+
+    def get(self) -> float:
+        return getattr(self, name) / 1000.0
+
+    def set_(self, value: float) -> None:
+        setattr(self, name, float(value) * 1000.0)
+
+    return get, set_
+
+
+_PLANET_RADIUS_KM = _kilometres("planet_radius")
+_ATMOSPHERE_HEIGHT_KM = _kilometres("atmosphere_height")
+
+
 def _get_visibility(self) -> float:
     from . import simple_controls
 
@@ -247,6 +264,28 @@ class AtmosSceneSettings(bpy.types.PropertyGroup):
         subtype="DISTANCE",
         unit="LENGTH",
         update=_on_parameter,
+    )
+    planet_radius_km: FloatProperty(
+        name="Planet Radius (km)",
+        description="Radius of the planet in kilometres (Earth 6360, Mars 3390): the Planet Radius setting, in km",
+        min=1.0,
+        soft_min=100.0,
+        soft_max=100000.0,
+        precision=0,
+        step=10000,
+        get=_PLANET_RADIUS_KM[0],
+        set=_PLANET_RADIUS_KM[1],
+    )
+    atmosphere_height_km: FloatProperty(
+        name="Atmosphere Height (km)",
+        description="Height of the top of the atmosphere above the ground in kilometres: the Atmosphere Height "
+                    "setting, in km",
+        min=0.1,
+        soft_max=300.0,
+        precision=0,
+        step=100,
+        get=_ATMOSPHERE_HEIGHT_KM[0],
+        set=_ATMOSPHERE_HEIGHT_KM[1],
     )
     sun_irradiance_top: FloatVectorProperty(
         name="Sun Irradiance at Top (W/m\u00b2)",

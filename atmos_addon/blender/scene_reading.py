@@ -258,3 +258,29 @@ def is_sun_animated(scene) -> bool:
     Position add-on turns it from its animated settings (:func:`turned_by_sun_position`)."""
     lamp = sun_object(scene)
     return moves_over_time(lamp) or turned_by_sun_position(scene, lamp)
+
+
+def _held_out_in(layer_collection, found: set) -> None:
+    """Add to ``found`` the objects ``layer_collection`` and its children hold out (a held-out collection holds out
+    everything in it, children included)."""
+    if layer_collection is None or layer_collection.exclude:
+        return
+    if layer_collection.holdout:
+        found.update(layer_collection.collection.all_objects)
+        return
+    for child in layer_collection.children:
+        _held_out_in(child, found)
+
+
+def held_out(scene) -> tuple[set, set]:
+    """(objects held out in every rendered view layer, objects held out in only some of them)."""
+    per_layer = []
+    for layer in scene.view_layers:
+        if layer.use:
+            found: set = set()
+            _held_out_in(layer.layer_collection, found)
+            per_layer.append(found)
+    if not per_layer:
+        return set(), set()
+    everywhere = set.intersection(*per_layer)
+    return everywhere, set.union(*per_layer) - everywhere

@@ -20,10 +20,10 @@ from .apply import sun_lamp
 #: ``scene.atmos`` properties that are views of other values (get/set), switches with side effects, or
 #: outputs the sync writes (status lines, the ground-sun display): restoring the values they are computed
 #: from restores them.
-DERIVED_SETTINGS = frozenset({"rna_type", "enabled", "visibility_km", "haze_colour", "air_density", "sun_elevation",
-                              "sun_azimuth", "sun_colour_display", "sun_strength_display", "status_built",
-                              "status_sun", "status_materials", "status_objects", "status_quality",
-                              "auto_level"})
+DERIVED_SETTINGS = frozenset({"rna_type", "enabled", "visibility_km", "haze_colour", "air_density",
+                              "planet_radius_km", "atmosphere_height_km", "sun_elevation", "sun_azimuth",
+                              "sun_colour_display", "sun_strength_display", "status_built", "status_sun",
+                              "status_materials", "status_objects", "status_quality", "auto_level"})
 
 #: Render settings a contact sheet changes (attribute paths from the scene), restored in this order.
 RENDER_PATHS = (

@@ -2,10 +2,11 @@
 """Physics core of Atmos (numpy only, no ``bpy``).
 
 Atmosphere model, phase functions, aerial perspective (Hoffman & Preetham 2002, eq. 19), Chapman optical
-depths, ground sunlight, the virtual-dome sky (``sky``) and a brute-force single-scattering reference.
+depths, ground sunlight and the virtual-dome sky (``sky``). The brute-force references that check them live in
+the top-level ``validation`` package, which the extension does not ship.
 """
 
-from . import reference, sky
+from . import sky
 from .aerial_perspective import (SMALL_OPTICAL_DEPTH, aerial_perspective, extinction, inscattering,
                                  one_minus_exp_over_x)
 from .atmosphere import Atmosphere
@@ -26,7 +27,6 @@ __all__ = [
     "phase_hg",
     "phase_rayleigh",
     "rayleigh_coefficients",
-    "reference",
     "sky",
     "relative_air_mass",
     "sun_color_and_strength",

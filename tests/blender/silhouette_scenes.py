@@ -112,6 +112,16 @@ def build(engine: str, mode: str, width: int, height: int, samples: int, *, qual
     return scene
 
 
+def hold_out(scene, name: str) -> None:
+    """Move object ``name`` into a new collection that the view layer holds out (Collection > Holdout)."""
+    obj = bpy.data.objects[name]
+    collection = bpy.data.collections.new("Held out")
+    scene.collection.children.link(collection)
+    collection.objects.link(obj)
+    scene.collection.objects.unlink(obj)
+    scene.view_layers[0].layer_collection.children[collection.name].holdout = True
+
+
 def configure(scene, engine: str, width: int, height: int, samples: int,
               filter_px: float = DEFAULT_FILTER_PX) -> None:
     """``engine`` at ``width`` x ``height``, ``samples`` per pixel, a ``filter_px`` pixel filter, compositing on."""

@@ -3,6 +3,8 @@
 
 The install runs in a fresh ``bpy`` process with a temporary HOME, so nothing leaks into a real
 user configuration and the add-on is loaded the way Blender loads it (``bl_ext.user_default.atmos``).
+There, with no checkout on the path (no ``validation``, ``tools`` or ``tests``), every module of the installed
+copy imports: what the add-on needs at run time ships with it.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import build_extension  # noqa: E402
 
 INSTALL_SCRIPT = textwrap.dedent(
     """
-    import json, sys
+    import importlib, importlib.util, json, pkgutil, sys
     import bpy
     result = {}
     ret = bpy.ops.extensions.package_install_files(
@@ -32,6 +34,28 @@ INSTALL_SCRIPT = textwrap.dedent(
     result["enabled"] = "bl_ext.user_default.atmos" in bpy.context.preferences.addons
     result["scene_property"] = hasattr(bpy.types.Scene, "atmos")
     result["module_file"] = sys.modules["bl_ext.user_default.atmos"].__file__
+    # Every module of the installed copy imports without the checkout's validation/, tools/ and tests/.
+    result["checkout_importable"] = [name for name in ("validation", "tools", "tests")
+                                     if importlib.util.find_spec(name) is not None]
+    modules, failures = [], {}
+
+    def import_all(package):
+        for info in pkgutil.iter_modules(package.__path__):
+            # __main__ runs the command line; "atmos_addon" is the extension root on atmos_addon's own path
+            if info.name in ("__main__", "atmos_addon"):
+                continue
+            name = package.__name__ + "." + info.name
+            try:
+                module = importlib.import_module(name)
+            except Exception as error:  # noqa: BLE001 (reported by name)
+                failures[name] = repr(error)
+                continue
+            modules.append(name)
+            if info.ispkg:
+                import_all(module)
+
+    import_all(importlib.import_module("bl_ext.user_default.atmos.atmos_addon"))
+    result["modules_imported"], result["import_failures"] = len(modules), failures
     import addon_utils
     addon_utils.disable("bl_ext.user_default.atmos", default_set=True)
     result["disabled_cleanly"] = not hasattr(bpy.types.Scene, "atmos")
@@ -58,8 +82,11 @@ def test_zip_holds_the_extension_and_nothing_else(extension_zip: Path) -> None:
     assert "atmos_addon/physics/__init__.py" in names
     assert "node_groups/__init__.py" in names
     assert "sample_scenes/valley.py" in names and "sample_scenes/mars.py" in names
-    for excluded in ("tests/", ".ci/", "tools/", ".venv/", "Makefile", "run", "requirements.txt"):
+    for excluded in ("tests/", ".ci/", "tools/", "validation/", ".venv/", "Makefile", "run", "requirements.txt"):
         assert not any(name == excluded or name.startswith(excluded) for name in names), excluded
+    # The references and the retired Balanced model moved to validation/: no copy of them ships anywhere.
+    moved = {"reference.py", "multiple_scattering_reference.py", "spectral_reference.py", "balanced.py", "accuracy.py"}
+    assert not [name for name in names if name.rsplit("/", 1)[-1] in moved]
     assert not any(name.endswith((".pyc", ".blend")) for name in names)
 
 
@@ -76,5 +103,7 @@ def test_zip_installs_and_enables_in_a_fresh_blender(extension_zip: Path, tmp_pa
     assert result["install"] == ["FINISHED"]
     assert result["enabled"] and result["scene_property"]
     assert result["module_file"].startswith(str(tmp_path)), "the installed copy must be the one loaded"
+    assert result["checkout_importable"] == [], "the checkout leaked onto the installed add-on's path"
+    assert result["import_failures"] == {} and result["modules_imported"] > 80, result
     assert result["disabled_cleanly"] and result["reenabled"]
     assert result["render_valley"] == 0 and (tmp_path / "valley.png").is_file(), proc.stderr[-3000:]

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """``atmos match`` in a subprocess (``python -m atmos_addon match``), as a pipeline would call it.
 
-The plate is made by the fit's own model (``match_plates.py``): the command writes a valid preset whose visibility and
+The plate is made by the fit's own model (``plate_files.py``): the command writes a valid preset whose visibility and
 sun are the plate's, prints the residual per region, saves the preset to the user library when asked and writes the
 comparison image; an EXR plate with a depth pass matches too. Every refusal (no sky mask, an overexposed sky, a
 distance of 0, a missing option, a name taken) ends in exit code 2 and one line, and writes nothing.
@@ -19,7 +19,7 @@ import pytest
 
 from atmos_addon import presets
 
-import match_plates
+import plate_files
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -40,24 +40,24 @@ def assert_one_line_error(proc: subprocess.CompletedProcess, *fragments: str) ->
 
 
 @pytest.fixture(scope="module")
-def plate_files(tmp_path_factory):
+def plate_set(tmp_path_factory):
     folder = tmp_path_factory.mktemp("plate")
-    return match_plates.write_plate(folder), folder
+    return plate_files.write_plate(folder), folder
 
 
 def _base(paths, output="look.toml"):
-    return [str(paths["plate"]), "--fov", str(match_plates.FOV_DEG), "--horizon", "0.5", "--sky-mask",
+    return [str(paths["plate"]), "--fov", str(plate_files.FOV_DEG), "--horizon", "0.5", "--sky-mask",
             str(paths["sky"]), "--output", output, "--start", "clear"]
 
 
-def test_match_writes_a_valid_preset_of_the_plates_look(plate_files, tmp_path):
-    paths, _ = plate_files
+def test_match_writes_a_valid_preset_of_the_plates_look(plate_set, tmp_path):
+    paths, _ = plate_set
     proc = run_cli(*_base(paths), "--region", f"{paths['far']}:15000", "--region", f"{paths['near']}:2000",
                    "--save-preset", "Plate Look", "--comparison", "comparison.png", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     preset = presets.validate_file(tmp_path / "look.toml")
     assert preset.name == "Plate Look"
-    truth = match_plates.TRUTH
+    truth = plate_files.TRUTH
     from atmos_addon.physics.visibility import visibility_m
 
     assert visibility_m(preset.atmosphere) == pytest.approx(truth.visibility_m, rel=0.10)
@@ -72,28 +72,28 @@ def test_match_writes_a_valid_preset_of_the_plates_look(plate_files, tmp_path):
 
 
 def test_an_exr_plate_with_a_depth_pass_matches(tmp_path):
-    paths = match_plates.write_plate(tmp_path / "exr", exr=True)
-    proc = run_cli(str(paths["plate"]), "--fov", str(match_plates.FOV_DEG), "--pitch", "0", "--sky-mask",
+    paths = plate_files.write_plate(tmp_path / "exr", exr=True)
+    proc = run_cli(str(paths["plate"]), "--fov", str(plate_files.FOV_DEG), "--pitch", "0", "--sky-mask",
                    str(paths["sky"]), "--depth", str(paths["depth"]), "--output", "depth.toml", "--start", "clear",
                    cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     preset = presets.validate_file(tmp_path / "depth.toml")
     from atmos_addon.physics.visibility import visibility_m
 
-    assert visibility_m(preset.atmosphere) == pytest.approx(match_plates.TRUTH.visibility_m, rel=0.10)
+    assert visibility_m(preset.atmosphere) == pytest.approx(plate_files.TRUTH.visibility_m, rel=0.10)
     assert "region 'depth pass'" in proc.stdout
 
 
-def test_refusals_are_one_line_and_write_nothing(plate_files, tmp_path):
-    paths, folder = plate_files
+def test_refusals_are_one_line_and_write_nothing(plate_set, tmp_path):
+    paths, _ = plate_set
     import bpy
 
     # an overexposed sky: the plate's sky pushed to white
     image = bpy.data.images.load(str(paths["plate"]), check_existing=False)
     pixels = np.empty(len(image.pixels), dtype=np.float32)
     image.pixels.foreach_get(pixels)
-    pixels = pixels.reshape(match_plates.HEIGHT, match_plates.WIDTH, 4)
-    pixels[match_plates.HEIGHT // 2 + 5:] = 1.0  # rows from the bottom in Blender's order: the top of the plate
+    pixels = pixels.reshape(plate_files.HEIGHT, plate_files.WIDTH, 4)
+    pixels[plate_files.HEIGHT // 2 + 5:] = 1.0  # rows from the bottom in Blender's order: the top of the plate
     image.pixels.foreach_set(pixels.ravel())
     image.filepath_raw = str(tmp_path / "blown.png")
     image.save()

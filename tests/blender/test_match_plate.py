@@ -18,14 +18,14 @@ from atmos_addon import presets
 from atmos_addon.blender.ui import match_plate, preset_ops
 from atmos_addon.physics.visibility import visibility_m
 
-import match_plates
+import plate_files
 
 
 def _camera(scene):
     """A level camera looking north (+Y) with the plate's horizontal field of view."""
     data = bpy.data.cameras.new("Camera")
     data.sensor_fit = "HORIZONTAL"
-    data.lens = data.sensor_width / (2.0 * math.tan(math.radians(match_plates.FOV_DEG) / 2.0))
+    data.lens = data.sensor_width / (2.0 * math.tan(math.radians(plate_files.FOV_DEG) / 2.0))
     camera = bpy.data.objects.new("Camera", data)
     camera.rotation_euler = (math.pi / 2.0, 0.0, 0.0)
     scene.collection.objects.link(camera)
@@ -45,16 +45,16 @@ def test_match_plate_saves_and_applies_the_plates_look(addon, user_presets, tmp_
     scene = addon
     _camera(scene)
     assert scene.world is None
-    paths = match_plates.write_plate(tmp_path)
-    fov, pitch, heading = match_plate.camera_view(scene, match_plates.WIDTH, match_plates.HEIGHT)
-    assert (fov, pitch, heading) == pytest.approx((match_plates.FOV_DEG, 0.0, 0.0), abs=1e-4)
+    paths = plate_files.write_plate(tmp_path)
+    fov, pitch, heading = match_plate.camera_view(scene, plate_files.WIDTH, plate_files.HEIGHT)
+    assert (fov, pitch, heading) == pytest.approx((plate_files.FOV_DEG, 0.0, 0.0), abs=1e-4)
     result = bpy.ops.atmos.match_plate(filepath=str(paths["plate"]), sky_mask=str(paths["sky"]),
                                        surface_mask_1=str(paths["far"]), distance_1=15_000.0,
                                        surface_mask_2=str(paths["near"]), distance_2=2_000.0, start="CLEAR",
                                        preset_name="Plate Look", apply=True, set_exposure=True)
     assert result == {"FINISHED"}
     saved = presets.load("Plate Look", user_presets)
-    truth = match_plates.TRUTH
+    truth = plate_files.TRUTH
     assert visibility_m(saved.atmosphere) == pytest.approx(truth.visibility_m, rel=0.10)
     assert saved.sun_elevation_deg == pytest.approx(truth.sun_elevation_deg, abs=1.0)
     assert scene.atmos.preset_name == "Plate Look"
@@ -63,13 +63,13 @@ def test_match_plate_saves_and_applies_the_plates_look(addon, user_presets, tmp_
     assert math.degrees(elevation) == pytest.approx(saved.sun_elevation_deg, abs=0.01)
     assert scene.view_settings.exposure == pytest.approx(truth.exposure_ev, abs=0.3)
     image = bpy.data.images[match_plate.COMPARISON_IMAGE]
-    assert tuple(image.size) == (3 * match_plates.WIDTH, match_plates.HEIGHT)
+    assert tuple(image.size) == (3 * plate_files.WIDTH, plate_files.HEIGHT)
 
 
 def test_match_plate_from_the_scene_settings_without_applying(addon, user_presets, tmp_path):
     scene = addon
     _camera(scene)
-    paths = match_plates.write_plate(tmp_path)
+    paths = plate_files.write_plate(tmp_path)
     before = _settings(scene)
     result = bpy.ops.atmos.match_plate(filepath=str(paths["plate"]), sky_mask=str(paths["sky"]),
                                        surface_mask_1=str(paths["far"]), distance_1=15_000.0,
@@ -77,7 +77,7 @@ def test_match_plate_from_the_scene_settings_without_applying(addon, user_preset
                                        preset_name="From Scene", apply=False)
     assert result == {"FINISHED"}
     saved = presets.load("From Scene", user_presets)
-    assert visibility_m(saved.atmosphere) == pytest.approx(match_plates.TRUTH.visibility_m, rel=0.10)
+    assert visibility_m(saved.atmosphere) == pytest.approx(plate_files.TRUTH.visibility_m, rel=0.10)
     assert "from the 'scene' preset" in saved.sources[0]
     assert _settings(scene) == before and scene.world is None   # not applied: the scene as it was
     # a second run under the same name needs Overwrite
@@ -89,11 +89,11 @@ def test_match_plate_from_the_scene_settings_without_applying(addon, user_preset
 def test_distances_from_the_scene_geometry(addon, user_presets, tmp_path):
     scene = addon
     _camera(scene)
-    match_plates.add_walls(scene)
-    paths = match_plates.write_plate(tmp_path, walls=True)
-    distance = match_plate.scene_distances(scene, match_plates.camera())
-    truth = match_plates.plane_distances()
-    for name, mask in match_plates.bands().items():
+    plate_files.add_walls(scene)
+    paths = plate_files.write_plate(tmp_path, walls=True)
+    distance = match_plate.scene_distances(scene, plate_files.camera())
+    truth = plate_files.plane_distances()
+    for name, mask in plate_files.bands().items():
         if name != "sky":
             assert distance[mask] == pytest.approx(truth[name][mask], rel=1e-4)
     result = bpy.ops.atmos.match_plate(filepath=str(paths["plate"]), sky_mask=str(paths["sky"]),
@@ -101,14 +101,14 @@ def test_distances_from_the_scene_geometry(addon, user_presets, tmp_path):
                                        preset_name="From Geometry", apply=False)
     assert result == {"FINISHED"}
     saved = presets.load("From Geometry", user_presets)
-    assert visibility_m(saved.atmosphere) == pytest.approx(match_plates.TRUTH.visibility_m, rel=0.10)
-    assert saved.sun_elevation_deg == pytest.approx(match_plates.TRUTH.sun_elevation_deg, abs=1.0)
+    assert visibility_m(saved.atmosphere) == pytest.approx(plate_files.TRUTH.visibility_m, rel=0.10)
+    assert saved.sun_elevation_deg == pytest.approx(plate_files.TRUTH.sun_elevation_deg, abs=1.0)
 
 
 def test_a_refused_plate_reports_once_and_changes_nothing(addon, user_presets, tmp_path):
     scene = addon
     _camera(scene)
-    paths = match_plates.write_plate(tmp_path)
+    paths = plate_files.write_plate(tmp_path)
     before = _settings(scene)
     images = len(bpy.data.images)
     for arguments, fragment in (({}, "no sky marked"),

@@ -328,6 +328,18 @@ def test_the_world_surface_slot_reads_plainly(user_presets):
             assert blf.dimensions(0, text)[0] <= 124.0, text
 
 
+def test_the_switch_comes_first_on_the_world_tab(user_presets):
+    """The main panel has no header (Blender keeps header-less panels at the top of the region, above Surface), so
+    its first row is the switch, labelled, and no header draws it."""
+    cls = ui_panel.ATMOS_PT_atmosphere
+    assert "HIDE_HEADER" in cls.bl_options and not hasattr(cls, "draw_header")
+    calls: list = []
+    cls.draw(SimpleNamespace(layout=RecordingLayout(calls), bl_idname=cls.bl_idname),
+             SimpleNamespace(scene=bpy.context.scene))
+    props = [call for call in calls if call[0] == "prop"]
+    assert props[0][1:3] == ("enabled", "Atmosphere"), props[:2]
+
+
 def test_sub_panels_grey_out_while_the_effect_is_off(user_presets):
     """Issue 29: with the effect off every sub-panel (and the Sky box) greys its contents, as Blender does under a
     header checkbox; with it on they are active."""
@@ -530,6 +542,20 @@ def test_eevees_depth_of_field_and_motion_blur_are_named_in_the_panel(user_prese
     assert "depth of field up to 31 %" in note and "motion blur up to 26 %" in note
     scene.render.engine = "CYCLES"
     assert not any(note.startswith("Eevee blurs") for note in facts.plan_of(scene).notes)
+
+
+def test_planet_lengths_show_in_kilometres(user_presets):
+    """The panel's Planet and Air Top fields are km views of the metre settings the presets and the core keep:
+    reading gives the preset's metres / 1000, writing sets the metres (and so the atmosphere)."""
+    settings = bpy.context.scene.atmos
+    bpy.ops.atmos.preset_apply(name="mars")
+    mars = presets.load("mars").atmosphere
+    assert settings.planet_radius_km == pytest.approx(mars.planet_radius / 1000.0, rel=1e-6)
+    assert settings.atmosphere_height_km == pytest.approx(mars.atmosphere_height / 1000.0, rel=1e-6)
+    settings.planet_radius_km = 6000.0
+    settings.atmosphere_height_km = 80.0
+    assert settings.planet_radius == pytest.approx(6.0e6, rel=1e-6)
+    assert settings.atmosphere_height == pytest.approx(8.0e4, rel=1e-6)
 
 
 def test_haze_and_air_density_read_and_write_the_coefficients(user_presets):

@@ -5,10 +5,9 @@ import numpy as np
 import pytest
 
 from atmos_addon.physics import Atmosphere, extinction, inscattering
-from atmos_addon.physics.balanced import (density_columns, extinction_balanced, inscattering_balanced,
-                                          optical_depth_segment, sun_irradiance_at_altitude,
-                                          sun_optical_depths_ground)
 from atmos_addon.physics.phase import phase_hg
+from validation.balanced import (density_columns, extinction_balanced, inscattering_balanced, optical_depth_segment,
+                                 sun_irradiance_at_altitude, sun_optical_depths_ground)
 from atmos_addon.presets import load
 
 #: numpy 2.0 renamed trapz to trapezoid; numpy 2.5 (beside bpy 5.3) has no trapz. Blender 4.2-5.0 use numpy 1.26.

@@ -1,18 +1,14 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What a user sees by default (Precise with multiple scattering), the issue's checklist as physics: the sky's
-colours from ``physics.precise.sky_radiance`` (``tools/measure_default_sky.py`` prints them all). Under the seed's
+colours from ``physics.precise.sky_radiance`` (``validation/measure_default_sky.py`` prints them all). Under the seed's
 single-scattering model each of these failed: a brown zenith at a low sun, a black blue hour, a black overcast dawn.
 """
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
-from measure_default_sky import sky_colours  # noqa: E402
+from validation.measure_default_sky import sky_colours
 
 
 def test_clear_noon_and_low_sun_zenith_is_blue_over_a_golden_horizon() -> None:

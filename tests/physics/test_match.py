@@ -26,6 +26,7 @@ from atmos_addon.physics import match
 from atmos_addon.physics.spectrum import channel_value_at
 from atmos_addon.physics.visibility import (extinction_550_per_m, haze_extinction_for_visibility,
                                             haze_for_extinction, visibility_m)
+from validation import match_plates
 
 CLEAR = presets.load("clear").atmosphere
 #: Pixels per region in the round trip (the default is 300; fewer keep the 20 fits quick).
@@ -57,17 +58,17 @@ def scene_plate(atm, sun_elevation_deg: float, sun_azimuth_deg: float, *, sky_on
                                                                                      2_000.0)]
     look = match.Look(atm, sun_elevation_deg, sun_azimuth_deg, 0.0)
     radiance = np.array([0.02, 0.018, 0.012])
-    probe = match.synthetic_plate(look, camera, masks, radiance)
+    probe = match_plates.synthetic_plate(look, camera, masks, radiance)
     marked = np.any([mask for _, mask, _ in masks], axis=0)
     look = replace(look, exposure_ev=math.log2(0.6 / float(np.percentile(probe.pixels[marked], 99.5))))
-    return match.synthetic_plate(look, camera, masks, radiance, noise=0.01, srgb=True, seed=seed), look
+    return match_plates.synthetic_plate(look, camera, masks, radiance, noise=0.01, srgb=True, seed=seed), look
 
 
 # ---------------------------------------------------------------------------------------------- round trip
 
 @pytest.mark.parametrize("seed", range(20))
 def test_round_trip_recovers_visibility_sun_and_colours(seed):
-    plate, truth, _ = match.round_trip_case(seed, CLEAR, width=WIDTH, height=HEIGHT)
+    plate, truth, _ = match_plates.round_trip_case(seed, CLEAR, width=WIDTH, height=HEIGHT)
     fit = match.fit(plate, CLEAR, samples_per_region=ROUND_TRIP_SAMPLES)
     assert fit.look.visibility_m == pytest.approx(truth.visibility_m, rel=0.10)
     assert abs(fit.look.sun_elevation_deg - truth.sun_elevation_deg) < 1.0
@@ -78,7 +79,7 @@ def test_round_trip_recovers_visibility_sun_and_colours(seed):
 
 
 def test_round_trip_with_the_sun_known_keeps_it():
-    plate, truth, _ = match.round_trip_case(3, CLEAR, width=WIDTH, height=HEIGHT)
+    plate, truth, _ = match_plates.round_trip_case(3, CLEAR, width=WIDTH, height=HEIGHT)
     knowns = match.Knowns(truth.sun_elevation_deg, truth.sun_azimuth_deg)
     fit = match.fit(plate, CLEAR, knowns, samples_per_region=ROUND_TRIP_SAMPLES)
     assert fit.look.sun_elevation_deg == pytest.approx(truth.sun_elevation_deg, abs=1e-9)
@@ -132,7 +133,7 @@ def test_a_sky_alone_under_overcast_says_it_cannot_tell_the_visibility():
 
 
 def test_a_well_posed_plate_holds_nothing_but_what_the_sun_hides():
-    plate, _, _ = match.round_trip_case(10, CLEAR, width=WIDTH, height=HEIGHT)
+    plate, _, _ = match_plates.round_trip_case(10, CLEAR, width=WIDTH, height=HEIGHT)
     fit = match.fit(plate, CLEAR)
     assert set(fit.held) <= {"ozone", "sun_elevation", "exposure", "air_density"}
     assert "visibility" in fit.fitted and fit.standard_errors["visibility"] < 0.10

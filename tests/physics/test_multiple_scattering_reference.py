@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from atmos_addon.physics import Atmosphere, phase_hg, phase_rayleigh
-from atmos_addon.physics.multiple_scattering_reference import (diffuse_flux_mc, inscattering_mc, sample_hg_cosine,
-                                                               sample_rayleigh_cosine, sky_radiance_mc, trace_paths)
-from atmos_addon.physics.reference import _distance_to_top, single_scattering
+from validation.multiple_scattering_reference import (diffuse_flux_mc, inscattering_mc, sample_hg_cosine,
+                                                      sample_rayleigh_cosine, sky_radiance_mc, trace_paths)
+from validation.reference import distance_to_top, single_scattering
 
 
 def _direction(elevation_deg, azimuth_deg=0.0):
@@ -21,7 +21,7 @@ def _direction(elevation_deg, azimuth_deg=0.0):
 
 def _sky_single_scattering(view, sun, atm, sun_irradiance_top=None):
     """reference.single_scattering along ``view`` from the ground to the top of the atmosphere."""
-    distance = float(_distance_to_top(np.asarray(atm.planet_radius), np.asarray(view[2]), atm))
+    distance = float(distance_to_top(np.asarray(atm.planet_radius), np.asarray(view[2]), atm))
     return single_scattering(0.0, view, distance, sun, atm, sun_irradiance_top, n_steps=2001, n_sun_steps=257)[1]
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from atmos_addon.physics import Atmosphere, chapman, optical_depth_to_space, relative_air_mass
-from atmos_addon.physics.reference import optical_depth_numerical
+from validation.reference import optical_depth_numerical
 
 EARTH = Atmosphere(atmosphere_height=400e3)  # tall top: the Chapman layers extend to infinity
 MARS = Atmosphere(planet_radius=3_389_500.0, rayleigh_scale_height=11_000.0, mie_scale_height=11_000.0,

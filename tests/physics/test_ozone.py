@@ -15,15 +15,15 @@ import numpy as np
 import pytest
 
 from atmos_addon.physics import Atmosphere
-from atmos_addon.physics import multiple_scattering_reference as ms_reference
 from atmos_addon.physics.optical_depth import optical_depth_to_space, ozone_slant_column
 from atmos_addon.physics.precise import SunTransmittanceTable, sky_radiance
-from atmos_addon.physics.reference import optical_depth_numerical
 from atmos_addon.physics.spectrum import (DOBSON_UNIT_PER_M2, OZONE_CHANNEL_CROSS_SECTION_M2, OZONE_CROSS_SECTION_M2,
                                          WAVELENGTHS_NM, channel_response_weights,
                                          ozone_number_density_per_m3)
 from atmos_addon.physics.sun import sun_irradiance_ground
 from atmos_addon.presets import load
+from validation import multiple_scattering_reference as ms_reference
+from validation.reference import optical_depth_numerical
 
 OZONE = Atmosphere(ozone_column_du=300.0)
 
@@ -123,7 +123,7 @@ def test_the_monte_carlo_reference_reads_the_atmosphere_s_ozone_as_its_absorber_
 
 
 #: Zenith B/R of the spectral Monte Carlo reference (every order, 48 wavelengths, clear preset, 300 DU, ground albedo
-#: 0.3) at a sun 2, 4 and 6 deg below the horizon: docs/reference_sky.md (tools/measure_reference_sky.py).
+#: 0.3) at a sun 2, 4 and 6 deg below the horizon: docs/reference_sky.md (validation/measure_reference_sky.py).
 SPECTRAL_REFERENCE_TWILIGHT_ZENITH_B_OVER_R = {-2.0: 2.59, -4.0: 3.4, -6.0: 4.46}
 
 

@@ -24,8 +24,8 @@ from atmos_addon.physics.precise import (ALTITUDE_MAX_STEP_M, ALTITUDE_SCALE_M, 
 from atmos_addon.physics.sky import dome_distance_approx
 from atmos_addon.physics.sky import sky_radiance as dome_sky_radiance
 from atmos_addon.physics.sun import sun_irradiance_ground
-from atmos_addon.physics.reference import single_scattering
 from atmos_addon.presets import load
+from validation.reference import single_scattering
 
 EARTH = Atmosphere()
 MARS = load("mars").atmosphere
@@ -468,10 +468,10 @@ def test_multiple_scattering_follows_the_complete_reference_over_a_dark_and_a_br
     # ground) and 0.998 (albedo 0.3). Hillaire's isotropic table gives 0.90 and 0.98, and 0.88 at albedo 0.3 where
     # the skylight does not bounce off the ground; lighting the ground with the mean radiance at the ground (which
     # counts the ground's own light) instead of the sky's irradiance gives 1.044.
-    from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
+    from validation.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import bake_tile
     from atmos_addon.physics.precise import evaluate as evaluate_precise
-    from atmos_addon.physics.quality import bench_case
+    from validation.accuracy import bench_case
 
     case = bench_case("ground_vista")
     reference, error = inscattering_mc(case.view_dirs, case.distances_m, case.sun_dir, case.atmosphere,
@@ -491,10 +491,10 @@ def test_multiple_scattering_at_the_blue_hour_is_not_an_interpolation_artefact()
     # on average (Hillaire's isotropic table). Crowded at mu_s = 0 it agrees with a 256-sample table. Measured 1.02
     # with the light's first moment carried (800 paths of seed 13); with isotropic third and higher orders 1.20
     # (per ray 0.88-1.38x against 24000 paths, docs/quality.md).
-    from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
+    from validation.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import bake_tile
     from atmos_addon.physics.precise import evaluate as evaluate_precise
-    from atmos_addon.physics.quality import COMPLETE_REFERENCE_GROUND_ALBEDO, bench_case
+    from validation.accuracy import COMPLETE_REFERENCE_GROUND_ALBEDO, bench_case
 
     case = bench_case("blue_hour")
     reference, _ = inscattering_mc(case.view_dirs, case.distances_m, case.sun_dir, case.atmosphere,
@@ -551,9 +551,9 @@ def test_multiple_scattering_at_a_low_sun_follows_the_complete_reference(name, l
 def _ratios_to_complete_reference(name: str, paths: int = 800, seed: int = 14) -> np.ndarray:
     """Precise's L_in with multiple scattering over the Monte Carlo reference (``paths`` a ray and channel, ``seed``),
     per bench ray and channel of the case ``name``."""
-    from atmos_addon.physics.multiple_scattering_reference import inscattering_mc
+    from validation.multiple_scattering_reference import inscattering_mc
     from atmos_addon.physics.precise import evaluate as evaluate_precise
-    from atmos_addon.physics.quality import COMPLETE_REFERENCE_GROUND_ALBEDO, bench_case
+    from validation.accuracy import COMPLETE_REFERENCE_GROUND_ALBEDO, bench_case
 
     case = bench_case(name)
     reference, _ = inscattering_mc(case.view_dirs, case.distances_m, case.sun_dir, case.atmosphere,
@@ -572,7 +572,7 @@ def test_the_multiply_scattered_light_of_a_martian_sunset_keeps_its_direction():
     # moment and delta-Eddington split alone (96 000 paths: 1.13 and 0.97, the light kept too close to the sun's
     # line); with the higher orders isotropic 0.59 and 1.51 (their mean, 1.05, hid it), with the first moment of the
     # whole peaked phase function (no delta split) about 0.8 and 0.3-0.9.
-    from atmos_addon.physics.quality import bench_case
+    from validation.accuracy import bench_case
 
     case = bench_case("mars_sunset")
     ratios = _ratios_to_complete_reference("mars_sunset")
@@ -586,11 +586,11 @@ def test_the_multiply_scattered_light_of_a_martian_sunset_keeps_its_direction():
 @pytest.mark.parametrize("name", ["mars_sunset"])
 def test_the_default_meets_the_low_sun_targets_against_the_stored_complete_reference(name):
     """The issue's targets for a sunset (luminance within 5 %, CIE xy within 0.01) against the complete reference at
-    192 000 paths a ray and channel (two seeds averaged; stored by ``tools/store_complete_reference.py``, whose
+    192 000 paths a ray and channel (two seeds averaged; stored by ``validation/store_complete_reference.py``, whose
     command the file holds: ten minutes to trace, so CI reads it). Measured: the Martian sunset 3.7 %, xy 0.0058 with
     the forward cut following each channel's g (``precise.grid_cut_deg``); with one 30 deg cut for every channel
     5.6 %, xy 0.0097 (red and green 2-6 % too bright, blue 2-10 % too dark)."""
-    from atmos_addon.physics.quality import bench_case, errors_of, reference
+    from validation.accuracy import bench_case, errors_of, reference
 
     stored = np.load(Path(__file__).resolve().parent / "data" / f"complete_{name}.npz")
     case = bench_case(name)
@@ -618,7 +618,7 @@ def test_a_high_sun_keeps_the_difference_between_toward_and_away():
     # seed 16: 0.994), the sun-cosine nodes even in elevation above 23 deg; with nodes even in sqrt|mu_s|, whose last
     # cell runs from 61.5 deg to the zenith, 0.97 and 1.04 (balance 0.93; 4.8 % against 64 000 paths where these
     # nodes give 0.3 %).
-    from atmos_addon.physics.quality import bench_case
+    from validation.accuracy import bench_case
 
     case = bench_case("mars_noon")
     ratios = _ratios_to_complete_reference("mars_noon", paths=1000)

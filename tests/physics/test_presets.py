@@ -315,7 +315,7 @@ def test_readme_table_is_the_schema():
 # ---------------------------------------------------------------------------------------------------------------
 # What each built-in looks like under the physics core
 #
-# Sky radiance: the core's brute-force single-scattering integral (``physics.reference.single_scattering``)
+# Sky radiance: the brute-force single-scattering integral (``validation.reference.single_scattering``)
 # along the view ray from the ground to the top of the atmosphere over the spherical planet: the physical
 # truth each preset is judged by. The shipped sky model (``physics.sky``, the virtual dome lit by the
 # ground-level sun) is checked against the same colour conditions in the last test of this file.
@@ -331,7 +331,7 @@ def _sky(atm: Atmosphere, sun_elevation_deg: float, view_elevation_deg: float, a
          ) -> np.ndarray:
     """Sky radiance (R, G, B) seen from the ground, W/(m^2 sr) for the preset's top-of-atmosphere sun."""
     view, sun = _direction(view_elevation_deg, azimuth_from_sun_deg), _direction(sun_elevation_deg)
-    from atmos_addon.physics import reference
+    from validation import reference
 
     radius, top = atm.planet_radius, atm.atmosphere_height
     sin_e = view[2]

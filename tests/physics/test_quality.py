@@ -5,11 +5,10 @@ import numpy as np
 import pytest
 
 from atmos_addon.physics.precise import evaluate as evaluate_precise
-from atmos_addon.physics.quality import (BENCH_CASES, COMPLETE_ONLY_CASES, IMPLEMENTED_LEVELS, MEASURED_PIXEL_ERROR,
-                                         PRODUCT_LEVELS,
-                                         MEASURED_PIXEL_ERROR_PER_PIXEL, Level, SceneSummary, bench_case,
-                                         choose_level, complete_reference, errors, errors_of, evaluate,
-                                         precise_tile, reference, relative_error)
+from atmos_addon.physics.quality import MEASURED_PIXEL_ERROR, PRODUCT_LEVELS, Level, SceneSummary, choose_level
+from validation.accuracy import (BENCH_CASES, COMPLETE_ONLY_CASES, IMPLEMENTED_LEVELS, MEASURED_PIXEL_ERROR_PER_PIXEL,
+                                 bench_case, complete_reference, errors, errors_of, evaluate, precise_tile, reference,
+                                 relative_error)
 
 
 def test_catalogue():

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from atmos_addon.physics import Atmosphere, inscattering
-from atmos_addon.physics.reference import optical_depth_numerical, single_scattering
+from validation.reference import optical_depth_numerical, single_scattering
 
 
 @pytest.mark.parametrize("species", ["rayleigh", "mie"])

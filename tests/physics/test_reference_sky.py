@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The spectral reference sky: wavelength bookkeeping, linearity, ozone's sign, and first order against quadrature.
 
-Path counts are tiny (the full runs are tools/measure_reference_sky.py); every Monte Carlo comparison allows for
+Path counts are tiny (the full runs are validation/measure_reference_sky.py); every Monte Carlo comparison allows for
 the estimator's own standard error, and the seeds are fixed.
 """
 
@@ -10,11 +10,10 @@ import pytest
 
 from atmos_addon import presets
 from atmos_addon.physics import Atmosphere
-from atmos_addon.physics.reference import _distance_to_top, single_scattering
-from atmos_addon.physics.spectral_reference import (N_TRIPLES, RGB_WEIGHTS, TRIPLE_INDICES, XYZ_WEIGHTS,
-                                                    OzoneTriple, aerosol_angstrom_fit, linear_stderr,
-                                                    ratio_and_stderr, spectral_coefficients, spectral_radiance,
-                                                    spectral_sky, triple_atmospheres)
+from validation.reference import distance_to_top, single_scattering
+from validation.spectral_reference import (N_TRIPLES, RGB_WEIGHTS, TRIPLE_INDICES, XYZ_WEIGHTS, OzoneTriple,
+                                           aerosol_angstrom_fit, linear_stderr, ratio_and_stderr, spectral_coefficients,
+                                           spectral_radiance, spectral_sky, triple_atmospheres)
 from atmos_addon.physics.spectrum import (CIE_1931_XYZ_BAR, SOLAR_IRRADIANCE_TOP_W_M2_NM, WAVELENGTHS_NM,
                                           channel_value_at, chromaticity_xy, ozone_absorption_per_m,
                                           rayleigh_spectrum_per_m, spectrum_to_linear_rec709, spectrum_to_xyz,
@@ -125,7 +124,7 @@ def test_first_order_is_the_quadrature_single_scattering(clear):
     spectrum, error = spectral_radiance(ZENITH, _sun(60.0), atmosphere=clear, ozone_du=0.0, ground_albedo=0.3,
                                         max_order=1, paths=1500, seed=6, triples=triples)
     atmospheres = triple_atmospheres(clear)
-    distance = float(_distance_to_top(np.asarray(clear.planet_radius), np.asarray(1.0), clear))
+    distance = float(distance_to_top(np.asarray(clear.planet_radius), np.asarray(1.0), clear))
     for t in triples:
         expected = single_scattering(0.0, ZENITH, distance, _sun(60.0), atmospheres[t], n_steps=1001,
                                      n_sun_steps=129)[1]

@@ -5,13 +5,14 @@ import numpy as np
 import pytest
 
 from atmos_addon import presets
-from atmos_addon.physics import (Atmosphere, extinction, inscattering, phase_hg, phase_rayleigh, reference,
+from atmos_addon.physics import (Atmosphere, extinction, inscattering, phase_hg, phase_rayleigh,
                                  sun_irradiance_ground)
 from atmos_addon.physics.sky import (aerial_distance_clamped, atmosphere_at_altitude, chapman_approx,
                                      dome_distance, dome_distance_approx, extinction_layered, extinction_two_species,
                                      inscattering_layered, inscattering_two_species, limb_darkening_factor,
                                      sky_radiance, sun_disk_radiance, sun_disk_solid_angle)
 from atmos_addon.physics.sun import LUMINANCE_WEIGHTS, SUN_ANGULAR_RADIUS_RAD
+from validation import reference
 
 ATM = Atmosphere()
 MARS = Atmosphere(planet_radius=3_389_500.0, rayleigh_scale_height=11_100.0, mie_scale_height=11_000.0)

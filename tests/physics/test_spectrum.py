@@ -195,8 +195,8 @@ def test_default_channels_render_the_spectral_single_scattering_sky():
     6 deg below the horizon; the seed's 680 / 550 / 440 nm under a white sun are 0.012-0.017 off by day."""
     from atmos_addon import presets
     from atmos_addon.physics import atmosphere as atmosphere_module
-    from atmos_addon.physics.reference import single_scattering
-    from atmos_addon.physics.spectral_reference import RGB_WEIGHTS, TRIPLE_INDICES, triple_atmospheres
+    from validation.reference import single_scattering
+    from validation.spectral_reference import RGB_WEIGHTS, TRIPLE_INDICES, triple_atmospheres
 
     clear = presets.load("clear").atmosphere
     seed = clear.replace(wavelengths_nm=[680.0, 550.0, 440.0], rayleigh_scattering=None, sun_irradiance_top=4.5,

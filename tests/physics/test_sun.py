@@ -6,7 +6,7 @@ import pytest
 
 from atmos_addon import presets
 from atmos_addon.physics import Atmosphere, sun_color_and_strength, sun_irradiance_ground
-from atmos_addon.physics.reference import optical_depth_numerical, sun_irradiance_numerical
+from validation.reference import optical_depth_numerical, sun_irradiance_numerical
 from atmos_addon.physics.sun import SUN_ANGULAR_RADIUS_RAD, visible_disk_fraction
 
 ATM = Atmosphere()

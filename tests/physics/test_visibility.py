@@ -4,8 +4,8 @@
 import numpy as np
 import pytest
 
-from atmos_addon.physics.visibility import (LEVELS, koschmieder_contrast, level_contrast, reference_contrast,
-                                            sun_direction, view_direction, visibility_m)
+from atmos_addon.physics.visibility import koschmieder_contrast, visibility_m
+from validation.visibility import LEVELS, level_contrast, reference_contrast, sun_direction, view_direction
 from atmos_addon.presets import load
 
 

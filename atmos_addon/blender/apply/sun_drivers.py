@@ -4,9 +4,10 @@ evaluated by Blender's depsgraph, with no Python and no tag on the scene.
 
 Why drivers
     A value Python writes into the scene tags it, and a tagged scene re-evaluates every object: 0.4-0.5 s a sun move
-    with 20000 objects, against 60-80 ms for Blender alone (``tools/measure_scene_tags.py``). Drivers on the scene's
-    custom properties, reading the lamp's matrix, cost a sun move nothing more (83 ms against 80 ms, measured in that
-    scene). They also follow an animated sun on every frame and sub-frame on a farm without the add-on.
+    with 20000 objects, against 60-80 ms for Blender alone (the scene of ``tools/bench_scale.py``, the median
+    ``view_layer.update()`` after the write). Drivers on the scene's custom properties, reading the lamp's matrix,
+    cost a sun move nothing more (83 ms against 80 ms, measured in that scene). They also follow an animated sun on
+    every frame and sub-frame on a farm without the add-on.
 
 What is driven (all simple expressions, which Blender evaluates without Python, so a file opened with scripts
 disabled renders the same)

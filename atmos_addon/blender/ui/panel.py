@@ -189,13 +189,15 @@ class ATMOS_PT_atmosphere(_WorldPanel, bpy.types.Panel):
 
     bl_label = "Atmosphere"
     bl_idname = "ATMOS_PT_atmosphere"
-
-    def draw_header(self, context):
-        self.layout.prop(_settings(context), "enabled", text="")
+    #: No header: Blender keeps header-less panels at the top of the region, right under the World selector, where
+    #: the artist looks first (a panel with a header is placed after the World panels the startup file already
+    #: holds, Surface, Volume, Mist Pass and Settings, whatever its ``bl_order``). The switch is the first row.
+    bl_options = {"HIDE_HEADER"}
 
     def draw(self, context):
         layout = self.layout
         settings = _settings(context)
+        layout.prop(settings, "enabled", text="Atmosphere")
         draw_preset_row(_active_when_on(layout.column(), settings), context)
         plan = facts.plan_of(context.scene)
         for note in plan.notes:
@@ -247,8 +249,8 @@ class ATMOS_PT_atmosphere_advanced(_SubPanel, bpy.types.Panel):
         column.prop(settings, "rayleigh_scale_height", text="Air Layer")
         column.prop(settings, "mie_scale_height", text="Haze Layer")
         column.separator()
-        column.prop(settings, "planet_radius", text="Planet Radius")
-        column.prop(settings, "atmosphere_height", text="Air Top")
+        column.prop(settings, "planet_radius_km", text="Planet, km")
+        column.prop(settings, "atmosphere_height_km", text="Air Top, km")
         column.prop(settings, "ozone_column_du", text="Ozone, DU")
         column.separator()
         _channels(column, settings, "wavelengths_nm", "Channels, nm")

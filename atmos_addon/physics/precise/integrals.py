@@ -117,7 +117,7 @@ def sky_radiance(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, *, ca
     (``ground_albedo``). Simpson's rule in w = sqrt(t / length) on ``n_samples`` (odd) samples, as the table
     cells of ``bake.bake_tile``. What the comparison with Blender's own sky models uses
     (``tools/compare_sky_texture.py``): with ``multiple_scattering=False`` it is the brute-force single scattering
-    of :mod:`..reference` with the sun's optical depth from a table instead of a march.
+    of ``validation.reference`` with the sun's optical depth from a table instead of a march.
     """
     if n_samples < 3 or n_samples % 2 == 0:
         raise ValueError(f"n_samples must be odd and >= 3; got {n_samples}")

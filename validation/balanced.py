@@ -75,10 +75,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, DTypeLike
 
-from .aerial_perspective import nonnegative_distance, one_minus_exp_over_x
-from .atmosphere import Atmosphere
-from .optical_depth import layer_optical_depth, ray_hits_planet
-from .phase import clamp_cosine, phase_hg, phase_rayleigh
+from atmos_addon.physics.aerial_perspective import nonnegative_distance, one_minus_exp_over_x
+from atmos_addon.physics.atmosphere import Atmosphere
+from atmos_addon.physics.optical_depth import layer_optical_depth, ray_hits_planet
+from atmos_addon.physics.phase import clamp_cosine, phase_hg, phase_rayleigh
 
 #: Straight pieces the curved ray is cut into (their ends lie on the parabola h0 + c t + k t^2).
 CURVATURE_PIECES = 4

@@ -2,11 +2,11 @@
 """Store the complete reference of bench cases for the tests: every scattering order by Monte Carlo at many paths
 (minutes a case), kept as data so that a test can hold the default to the issue's targets in a second.
 
-    .venv/bpy-5.2.3/bin/python tools/store_complete_reference.py --cases mars_sunset --paths 16000 --seeds 11,12
+    .venv/bpy-5.2.3/bin/python validation/store_complete_reference.py --cases mars_sunset --paths 16000 --seeds 11,12
 
-For each case: ``physics.quality.complete_reference`` at ``paths`` per ray and channel (the low-sun cases trace
-``bench_accuracy.LOW_SUN_PATH_FACTOR`` times as many, as the bench does) for each seed, averaged over the seeds (the
-standard error of the mean: the root of the summed squares over the count), written to
+For each case: ``validation.accuracy.complete_reference`` at ``paths`` per ray and channel (the low-sun cases trace
+``validation.accuracy.LOW_SUN_PATH_FACTOR`` times as many, as the bench does) for each seed, averaged over the
+seeds (the standard error of the mean: the root of the summed squares over the count), written to
 ``tests/physics/data/complete_<case>.npz`` with the paths, the seeds and the command. Prints the seconds per seed.
 """
 
@@ -21,10 +21,9 @@ import numpy as np
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO_ROOT))
-sys.path.insert(0, str(REPO_ROOT / "tools"))
 
-from atmos_addon.physics.quality import BENCH_CASES, COMPLETE_ONLY_CASES, complete_reference  # noqa: E402
-from bench_accuracy import LOW_SUN_PATH_FACTOR  # noqa: E402
+from validation.accuracy import (BENCH_CASES, COMPLETE_ONLY_CASES, LOW_SUN_PATH_FACTOR,  # noqa: E402
+                                 complete_reference)
 
 DATA = REPO_ROOT / "tests" / "physics" / "data"
 
@@ -36,7 +35,7 @@ def path_of(case_name: str) -> Path:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--cases", required=True, help="comma-separated case names (physics.quality's)")
+    parser.add_argument("--cases", required=True, help="comma-separated case names (validation.accuracy's)")
     parser.add_argument("--paths", type=int, default=16000, help="paths per ray and channel")
     parser.add_argument("--seeds", default="11,12", help="comma-separated seeds")
     args = parser.parse_args()
@@ -54,8 +53,8 @@ def main() -> int:
             errors.append(error)
             print(f"{name}: seed {seed}, {traced} paths a ray and channel, {time.perf_counter() - start:.0f} s",
                   flush=True)
-        command = (f".venv/bpy-5.2.3/bin/python tools/store_complete_reference.py --cases {name} --paths {args.paths}"
-                   f" --seeds {args.seeds}")
+        command = (f".venv/bpy-5.2.3/bin/python validation/store_complete_reference.py --cases {name}"
+                   f" --paths {args.paths} --seeds {args.seeds}")
         np.savez(path_of(name), l_in=np.mean(radiances, axis=0),
                  error=np.sqrt(np.sum(np.square(errors), axis=0)) / len(seeds),
                  paths=traced, seeds=np.array(seeds), command=command)

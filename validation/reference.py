@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .atmosphere import Atmosphere
-from .phase import phase_hg, phase_rayleigh
+from atmos_addon.physics.atmosphere import Atmosphere
+from atmos_addon.physics.phase import phase_hg, phase_rayleigh
 
 
 def _simpson(values: np.ndarray, step: ArrayLike, axis: int = -1) -> np.ndarray:
@@ -51,7 +51,7 @@ def _layer_extinction(altitude_m: np.ndarray, atm: Atmosphere) -> np.ndarray:
     return extinction + atm.ozone_absorption_at(altitude_m) if atm.ozone_column_du > 0.0 else extinction
 
 
-def _distance_to_top(radius_m: np.ndarray, cos_zenith: np.ndarray, atm: Atmosphere) -> np.ndarray:
+def distance_to_top(radius_m: np.ndarray, cos_zenith: np.ndarray, atm: Atmosphere) -> np.ndarray:
     """Distance along a ray from radius r with local zenith cosine mu to the top sphere, m (0 if outside)."""
     top = atm.planet_radius + atm.atmosphere_height
     discriminant = np.maximum(radius_m ** 2 * (cos_zenith ** 2 - 1.0) + top ** 2, 0.0)
@@ -85,7 +85,7 @@ def optical_depth_numerical(altitude_m: float, zenith_rad: float, atm: Atmospher
     mu = np.asarray(np.cos(float(zenith_rad)))
     if _hits_planet(radius, mu, atm):
         return np.full(3, np.inf)
-    end = _distance_to_top(radius, mu, atm)
+    end = distance_to_top(radius, mu, atm)
     perigee = np.clip(-radius * mu, 0.0, end)
     zero = np.zeros_like(end)
     return (_optical_depth_segment(radius, mu, zero, perigee, atm, n)
@@ -104,7 +104,7 @@ def sun_transmittance_numerical(points_m: np.ndarray, sun_dir: np.ndarray, atm: 
     radius = np.linalg.norm(offset, axis=-1)
     mu = np.einsum("...i,i->...", offset, sun_dir) / radius
     shadow = _hits_planet(radius, mu, atm)
-    end = np.where(shadow, 0.0, _distance_to_top(radius, mu, atm))  # shadowed rays are not integrated
+    end = np.where(shadow, 0.0, distance_to_top(radius, mu, atm))  # shadowed rays are not integrated
     perigee = np.clip(-radius * mu, 0.0, end)
     tau = (_optical_depth_segment(radius, mu, np.zeros_like(end), perigee, atm, n_steps)
            + _optical_depth_segment(radius, mu, perigee, end, atm, n_steps))
@@ -156,7 +156,8 @@ def sun_irradiance_numerical(elevation_rad: float, atm: Atmosphere, altitude_m: 
     disk of I dx dy, with I = 1 - u (1 - sqrt(1 - x^2 - y^2)) (linear limb darkening, flat disk of radius rho,
     x and y in units of rho), T the transmittance toward the point (:func:`optical_depth_numerical`, straight rays,
     0 below the geometric horizon seen from ``altitude_m``). Simpson's rule on ``n_rows`` heights y and
-    ``n_columns`` points across each chord (both odd). Shares nothing with :mod:`.sun` but the geometry.
+    ``n_columns`` points across each chord (both odd). Shares nothing with :mod:`~atmos_addon.physics.sun` but the
+    geometry.
     """
     rows, columns = _odd(n_rows, "n_rows"), _odd(n_columns, "n_columns")
     radius = atm.planet_radius + max(float(altitude_m), 0.0)

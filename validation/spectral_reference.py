@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Spectral reference sky: the Monte Carlo yardstick run wavelength by wavelength, then CIE 1931 -> Rec.709.
 
-:func:`~atmos_addon.physics.multiple_scattering_reference.sky_radiance_mc` traces one colour channel per
+:func:`~validation.multiple_scattering_reference.sky_radiance_mc` traces one colour channel per
 path in an :class:`~atmos_addon.physics.atmosphere.Atmosphere` of three channels. Here the 48 wavelengths of
 :data:`~atmos_addon.physics.spectrum.WAVELENGTHS_NM` are grouped into 16 consecutive triples
 (360-380 nm, 390-410 nm, ..., 810-830 nm); each triple is one ``Atmosphere`` whose three "channels" are
@@ -35,12 +35,13 @@ from collections.abc import Callable, Iterable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .atmosphere import Atmosphere
-from .multiple_scattering_reference import sky_radiance_mc
-from .rayleigh import rayleigh_coefficients
-from .spectrum import (ANGSTROM_REFERENCE_WAVELENGTH_NM, CIE_1931_XYZ_BAR, SOLAR_IRRADIANCE_TOP_W_M2_NM,
-                       OZONE_CROSS_SECTION_M2, WAVELENGTH_STEP_NM, WAVELENGTHS_NM, XYZ_TO_LINEAR_REC709,
-                       ozone_number_density_per_m3, rayleigh_spectrum_per_m)
+from atmos_addon.physics.atmosphere import Atmosphere
+from atmos_addon.physics.rayleigh import rayleigh_coefficients
+from atmos_addon.physics.spectrum import (ANGSTROM_REFERENCE_WAVELENGTH_NM, CIE_1931_XYZ_BAR,
+                                          OZONE_CROSS_SECTION_M2, SOLAR_IRRADIANCE_TOP_W_M2_NM, WAVELENGTH_STEP_NM,
+                                          WAVELENGTHS_NM, XYZ_TO_LINEAR_REC709, ozone_number_density_per_m3,
+                                          rayleigh_spectrum_per_m)
+from validation.multiple_scattering_reference import sky_radiance_mc
 
 #: Number of wavelength triples (one ``Atmosphere`` each).
 N_TRIPLES = WAVELENGTHS_NM.size // 3

@@ -2,7 +2,7 @@
 """What the default (Precise with multiple scattering) shows: the sky's colour at the zenith and 3 deg above the
 horizon toward the sun, per preset and sun elevation, for a camera 2 m up.
 
-    .venv/bpy-5.2.3/bin/python tools/measure_default_sky.py
+    .venv/bpy-5.2.3/bin/python validation/measure_default_sky.py
 
 The issue's checklist for the default: a blue clear zenith at noon; at a 5 deg sun a blue zenith over a golden
 horizon; a blue hour that is blue (zenith B > G > R with the sun 2-6 deg below the horizon); an overcast sky still

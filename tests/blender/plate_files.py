@@ -11,6 +11,7 @@ import numpy as np
 
 from atmos_addon import presets
 from atmos_addon.physics import match
+from validation import match_plates as model_plates
 
 WIDTH, HEIGHT = 128, 72
 FOV_DEG = 55.0
@@ -66,7 +67,7 @@ def write_plate(folder: Path, exr: bool = False, look: match.Look = TRUTH, walls
     masks = bands()
     distances = plane_distances() if walls else DISTANCES_M
     regions = [("sky", masks["sky"], None)] + [(name, masks[name], distances[name]) for name in ("far", "near")]
-    plate = match.synthetic_plate(look, camera(), regions, GROUND, noise=0.005, srgb=not exr, seed=5)
+    plate = model_plates.synthetic_plate(look, camera(), regions, GROUND, noise=0.005, srgb=not exr, seed=5)
     paths = {"plate": _save(folder / ("plate.exr" if exr else "plate.png"),
                             plate.pixels if exr else match.linear_to_srgb(plate.pixels), exr)}
     masks["ground"] = masks["far"] | masks["near"]

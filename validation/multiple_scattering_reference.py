@@ -3,7 +3,7 @@
 
 Independent of the product's approximation (:mod:`~atmos_addon.physics.precise` is not used): every
 scattering order is followed explicitly, with the true phase functions, a spherical planet and a Lambertian
-ground. Geometry as in :mod:`~atmos_addon.physics.reference`: z up, the camera at (0, 0, h), the planet's
+ground. Geometry as in :mod:`~validation.reference`: z up, the camera at (0, 0, h), the planet's
 centre at (0, 0, -R) (internally positions are kept relative to the centre), the atmosphere ending at
 radius R + ``atm.atmosphere_height``.
 
@@ -35,7 +35,7 @@ camera, one colour channel per path, and each term is estimated by sampling with
   so there is no double counting.
 * Continuation: the species is picked with probability sigma_R / sigma_s vs sigma_M / sigma_s and the new
   direction drawn from its phase function (Rayleigh by inverting its cubic CDF, Henyey-Greenstein by the
-  closed-form inverse, g > 0 forward as in :mod:`.phase`): the density equals Phi, so the weight is
+  closed-form inverse, g > 0 forward as in :mod:`~atmos_addon.physics.phase`): the density equals Phi, so the weight is
   unchanged. At the ground the direction is cosine-distributed and the weight is multiplied by the albedo.
 * Russian roulette once a weight falls below ``ROULETTE_FRACTION`` of its first-vertex weight: survival
   probability w / (fraction w_1), survivors divided by it, so the expectation is unchanged.
@@ -46,7 +46,7 @@ quadrature of optical depths (distances follow the trapezoid optical depth, the 
 about 1e-4 relative at most with the default ``n_nodes``, far below the noise of 1e4 paths. The standard
 error returned is that of the mean over independent paths. ``max_order = n`` keeps light scattered at most
 n times (n vertices, volume or ground); ``max_order = 1`` is single scattering, the integral of
-:func:`~atmos_addon.physics.reference.single_scattering`.
+:func:`~validation.reference.single_scattering`.
 
 Limits: the sun is a point (its disk and the direct beam are not part of the sky radiance), straight rays
 (no refraction), a Lambertian ground, one colour channel per path (no spectral sharing of paths).
@@ -59,8 +59,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .atmosphere import Atmosphere
-from .phase import phase_hg, phase_rayleigh
+from atmos_addon.physics.atmosphere import Atmosphere
+from atmos_addon.physics.phase import phase_hg, phase_rayleigh
 
 #: Russian roulette starts when a path's weight falls below this fraction of its first-vertex weight.
 ROULETTE_FRACTION = 0.1
@@ -183,7 +183,8 @@ def sample_rayleigh_cosine(xi: np.ndarray) -> np.ndarray:
 
 
 def sample_hg_cosine(xi: np.ndarray, g: ArrayLike) -> np.ndarray:
-    """Cosines with density 2 pi Phi_HG(mu, g) from uniform ``xi``; g > 0 forward (mu -> 1), as :func:`.phase_hg`.
+    """Cosines with density 2 pi Phi_HG(mu, g) from uniform ``xi``; g > 0 forward (mu -> 1), as
+    :func:`~atmos_addon.physics.phase.phase_hg`.
 
     Inverse of the CDF: mu = (1 + g^2 - ((1 - g^2) / (1 - g + 2 g xi))^2) / (2 g); uniform for |g| < 1e-6.
     """
@@ -318,7 +319,7 @@ def sky_radiance_mc(view_dir: ArrayLike, sun_dir: ArrayLike, atm: Atmosphere, *,
 
     ``view_dir`` (3,) or (k, 3): directions from the camera at (0, 0, ``camera_altitude_m``) (z up);
     ``sun_dir`` toward the sun. Returns radiance and standard error, each (3,) or (k, 3), in the units of
-    :func:`~atmos_addon.physics.reference.single_scattering`: W m^-2 sr^-1 for ``sun_irradiance_top`` in
+    :func:`~validation.reference.single_scattering`: W m^-2 sr^-1 for ``sun_irradiance_top`` in
     W m^-2 (default ``atm.sun_irradiance_top``). The sun's disk itself is not included. ``paths`` per view
     direction and channel; ``extra_absorption(altitude_m)`` -> (..., 3) 1/m adds a non-scattering absorber.
     """
@@ -336,9 +337,9 @@ def inscattering_mc(view_dir: ArrayLike, distance_m: ArrayLike, sun_dir: ArrayLi
     """L_in of the aerial perspective by every scattering order: the light scattered toward the camera in front
     of a black surface ``distance_m`` away along each view (scalar or (k,), m), and its standard error.
 
-    The complete counterpart of the L_in of :func:`~atmos_addon.physics.reference.single_scattering` (equal to
+    The complete counterpart of the L_in of :func:`~validation.reference.single_scattering` (equal to
     it with ``max_order=1``) and of every quality level; the surface's own light L0 F_ex is the caller's (F_ex
-    is deterministic: :func:`~atmos_addon.physics.reference.single_scattering`). A distance beyond the top of
+    is deterministic: :func:`~validation.reference.single_scattering`). A distance beyond the top of
     the atmosphere or the ground gives :func:`sky_radiance_mc` with no space light, sample for sample. Other
     arguments and the returned shapes as :func:`sky_radiance_mc`.
     """
