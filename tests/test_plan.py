@@ -89,7 +89,7 @@ def test_the_animated_settings_note():
 
 def test_the_holdout_note():
     (note,) = plan_for(SceneFacts(holdout=True)).notes
-    assert note.startswith("Holdout collection: pixels at a held-out object's edge are off")
+    assert note.startswith("Holdout differs between view layers: pixels at a held-out object's edge are off")
     assert plan_for(SceneFacts(holdout=True, render_mode="COMPOSITOR")).notes == (note,)
     in_render = plan_for(SceneFacts(holdout=True, render_mode="IN_RENDER")).notes   # the shader applies it per sample
     assert note not in in_render

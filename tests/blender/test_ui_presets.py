@@ -509,7 +509,9 @@ def test_a_fresh_tick_shows_the_clear_presets_own_numbers(user_presets):
     assert round(scene.atmos.visibility_km, 1) == 70.0   # the preset's stated visibility, in km
 
 
-def test_a_holdout_collection_is_named_in_the_panel_with_its_edge_error(user_presets):
+def test_a_holdout_that_differs_between_view_layers_is_named_in_the_panel_with_its_edge_error(user_presets):
+    """Held out in every rendered view layer, the objects are marked and their edges exact: no note. Held out in one
+    layer and not in another that renders too, they are not, and the panel names the error."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     make_camera(scene)
@@ -523,6 +525,8 @@ def test_a_holdout_collection_is_named_in_the_panel_with_its_edge_error(user_pre
     scene.atmos.enabled = True
     assert plan_module.NOTE_HOLDOUT not in facts.plan_of(scene).notes
     scene.view_layers[0].layer_collection.children["Foreground"].holdout = True
+    assert plan_module.NOTE_HOLDOUT not in facts.plan_of(scene).notes
+    scene.view_layers.new("Beauty")   # renders too, and holds nothing out
     assert plan_module.NOTE_HOLDOUT in facts.plan_of(scene).notes
     lines = [call[1] for call in draw_everything(scene) if call[0] == "label"]
     assert " ".join(ui_panel.wrapped(plan_module.NOTE_HOLDOUT)) == " ".join(
