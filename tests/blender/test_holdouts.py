@@ -63,3 +63,23 @@ def test_view_layers_that_disagree_leave_the_object_unmarked_and_the_panel_says_
     scene.view_layers[0].update()
     assert _marked(scene) == {"Plate"}
     assert NOTE_HOLDOUT not in facts.plan_of(scene).notes
+
+
+def test_the_marks_and_the_group_that_reads_them_are_saved_for_a_farm_without_the_add_on(addon, tmp_path):
+    import atmos_addon
+    from atmos_addon.node_groups import stamps
+
+    scene = _scene(addon)
+    scene.view_layers[0].layer_collection.children["Held out"].holdout = True
+    api.enable(scene, preset="clear")
+    path = tmp_path / "held_out.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    atmos_addon.unregister()
+    try:
+        bpy.ops.wm.open_mainfile(filepath=str(path))
+        assert bpy.data.objects["Plate"].get(HOLDOUT_ATTRIBUTE) == 1.0
+        outputs = bpy.data.node_groups[stamps.SURFACE_OUTPUTS.name]
+        assert any(node.bl_idname == "ShaderNodeAttribute" and node.attribute_type == "OBJECT"
+                   and node.attribute_name == HOLDOUT_ATTRIBUTE for node in outputs.nodes)
+    finally:
+        atmos_addon.register()   # the fixture unregisters
