@@ -24,7 +24,9 @@ def _scene(scene):
     for name, collection in (("Plate", held), ("Ground", scene.collection)):
         mesh = bpy.data.meshes.new(name)
         mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
-        mesh.materials.append(bpy.data.materials.new(name))
+        material = bpy.data.materials.new(name)
+        ru.set_use_nodes(material)   # Blender 4.5 makes a material without nodes
+        mesh.materials.append(material)
         collection.objects.link(bpy.data.objects.new(name, mesh))
     return scene
 
