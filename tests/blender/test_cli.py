@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
+from cli_utils import REPO_ROOT, assert_one_line_error, run_cli
 
 VACUUM_PRESET = textwrap.dedent(
     """
@@ -64,21 +64,6 @@ SCENE_SCRIPT = textwrap.dedent(
     bpy.ops.wm.save_as_mainfile(filepath=sys.argv[1])
     """
 )
-
-
-def run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = dict(os.environ, HOME=str(cwd), PYTHONPATH=str(REPO_ROOT))
-    return subprocess.run([sys.executable, "-m", "atmos_addon", *args], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=600)
-
-
-def assert_one_line_error(proc: subprocess.CompletedProcess, *fragments: str) -> None:
-    assert proc.returncode == 2, proc.stderr[-2000:]
-    errors = [line for line in proc.stderr.splitlines() if line.startswith("atmos: error: ")]
-    assert len(errors) == 1, proc.stderr[-2000:]
-    assert "Traceback" not in proc.stderr
-    for fragment in fragments:
-        assert fragment in errors[0], errors[0]
 
 
 @pytest.fixture(scope="module")

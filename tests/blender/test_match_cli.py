@@ -9,9 +9,7 @@ distance of 0, a missing option, a name taken) ends in exit code 2 and one line,
 
 from __future__ import annotations
 
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,24 +17,14 @@ import pytest
 
 from atmos_addon import presets
 
+import cli_utils
 import plate_files
-
-REPO_ROOT = Path(__file__).resolve().parents[2]
+from cli_utils import assert_one_line_error
 
 
 def run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = dict(os.environ, HOME=str(cwd), PYTHONPATH=str(REPO_ROOT), ATMOS_USER_PRESETS=str(cwd / "library"))
-    return subprocess.run([sys.executable, "-m", "atmos_addon", "match", *args], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=600)
-
-
-def assert_one_line_error(proc: subprocess.CompletedProcess, *fragments: str) -> None:
-    assert proc.returncode == 2, proc.stderr[-2000:]
-    errors = [line for line in proc.stderr.splitlines() if line.startswith("atmos: error: ")]
-    assert len(errors) == 1, proc.stderr[-2000:]
-    assert "Traceback" not in proc.stderr
-    for fragment in fragments:
-        assert fragment in errors[0], errors[0]
+    """``atmos match ARGS`` with a user preset library of its own."""
+    return cli_utils.run_cli("match", *args, cwd=cwd, ATMOS_USER_PRESETS=str(cwd / "library"))
 
 
 @pytest.fixture(scope="module")
